@@ -1,1 +1,31 @@
-//! io
+//! # locap-io: capture file formats
+//!
+//! Every reader turns a file into the types of `locap-core` ([`locap_core::Take`] for marker
+//! data, [`locap_core::Motion`] for skeleton motion); every writer goes the other way and
+//! writes atomically (see [`atomic`]), so a failed write never leaves half a file behind and
+//! never touches the input.
+//!
+//! # Formats
+//! - [`c3d`]: the binary C3D format of every optical capture system, read and written
+//!   *losslessly*: parameters and analog data locap does not interpret are carried through.
+//! - [`bvh`]: Biovision hierarchy, skeleton motion in and out.
+//! - [`asf_amc`]: Acclaim skeleton (ASF) and motion (AMC), as in the CMU database (read).
+//! - [`trc`]: OpenSim / Motion Analysis marker text files, in and out.
+//! - [`csv`]: a plain marker table for spreadsheets (write).
+//!
+//! # Errors
+//! [`Error`] says where a file is broken: byte offset and section for binary files, line and
+//! column for text files, and (through [`Error::in_file`]) which file.
+//!
+//! No existing crate was fit to build on (the `c3dio` writer produces files that ezc3d and
+//! py-c3d reject; `bvh_anim` is unmaintained alpha), so the formats are implemented here.
+
+pub mod asf_amc;
+pub mod atomic;
+pub mod bvh;
+pub mod c3d;
+pub mod csv;
+mod error;
+pub mod trc;
+
+pub use error::{Error, Result};
