@@ -1,1 +1,68 @@
-fn main(){}
+//! The `locap` command-line program.
+//!
+//! Each subcommand lives in `cmd/`, with an `Args` struct that only parses and a `run` that
+//! does the work through the library crates. Commands take many files or folders; each take
+//! is an independent job run on all cores, and one bad take prints `path: reason` without
+//! stopping the others; the exit status says whether any failed (0 = all good, 1 = some take
+//! failed, 2 = usage error).
+
+mod cmd;
+mod inputs;
+
+use clap::{Parser, Subcommand};
+use std::process::ExitCode;
+
+/// locap: automatic optical motion capture clean-up.
+///
+/// Reads C3D, TRC, BVH and ASF/AMC files; labels, cleans and solves marker data.
+#[derive(Parser, Debug)]
+#[command(name = "locap", version, about, long_about = None, propagate_version = true)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+enum Command {
+    /// Describe takes: markers, frames, rate, units, vendor, analog channels and gaps.
+    Info(cmd::info::Args),
+    /// Convert between formats (chosen from the file extensions).
+    Convert(cmd::convert::Args),
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Info(args) => cmd::info::run(args),
+        Command::Convert(args) => cmd::convert::run(args),
+    };
+    match result {
+        Ok(code) => code,
+        Err(err) => {
+            eprintln!("locap: error: {err:#}");
+            ExitCode::from(2)
+        }
+    }
+}
+
+/// Writes `text` to standard output. A closed pipe (`locap info ... | head`) is a normal way
+/// for a reader to stop, so it ends the program quietly instead of failing.
+pub fn emit(text: &str) -> anyhow::Result<()> {
+    use std::io::Write;
+    let mut out = std::io::stdout().lock();
+    match out.write_all(text.as_bytes()).and_then(|_| out.flush()) {
+        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => std::process::exit(0),
+        other => Ok(other?),
+    }
+}
+
+/// Reports a failed take on standard error without stopping the batch. Library errors name
+/// their file already; others get the path in front.
+pub fn report_failure(path: &std::path::Path, err: &anyhow::Error) {
+    let text = format!("{err:#}");
+    if text.contains(&path.display().to_string()) {
+        eprintln!("locap: {text}");
+    } else {
+        eprintln!("locap: {}: {text}", path.display());
+    }
+}

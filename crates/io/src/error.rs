@@ -52,12 +52,12 @@ pub enum Error {
     #[error(transparent)]
     Skeleton(#[from] locap_core::SkeletonError),
     /// An error in a named file.
-    #[error("{}: {source}", path.display())]
+    #[error("{}: {error}", path.display())]
     InFile {
         /// The file.
         path: PathBuf,
         /// What went wrong in it.
-        source: Box<Error>,
+        error: Box<Error>,
     },
 }
 
@@ -66,12 +66,20 @@ impl Error {
     pub fn in_file(self, path: &Path) -> Error {
         match self {
             e @ Error::InFile { .. } => e,
-            e => Error::InFile { path: path.to_path_buf(), source: Box::new(e) },
+            e => Error::InFile {
+                path: path.to_path_buf(),
+                error: Box::new(e),
+            },
         }
     }
 
     /// A text-format error at `line` (1-based).
     pub fn text(format: &'static str, line: usize, message: impl Into<String>) -> Error {
-        Error::Text { format, line, column: None, message: message.into() }
+        Error::Text {
+            format,
+            line,
+            column: None,
+            message: message.into(),
+        }
     }
 }

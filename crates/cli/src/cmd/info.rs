@@ -1,0 +1,216 @@
+//! `locap info`: what is in a take.
+
+use crate::inputs;
+use anyhow::Result;
+use clap::Parser;
+use locap_core::GapStatistics;
+use locap_io::c3d;
+use rayon::prelude::*;
+use serde::Serialize;
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+
+/// Arguments of `locap info`.
+#[derive(Parser, Debug)]
+pub struct Args {
+    /// Takes to describe: C3D or TRC files, or folders searched recursively.
+    #[arg(required = true, value_name = "FILE")]
+    files: Vec<PathBuf>,
+    /// Print one JSON document per file (a JSON array for several files) instead of text.
+    #[arg(long, help_heading = "Output")]
+    json: bool,
+}
+
+/// Everything `info` reports about one take.
+#[derive(Serialize, Debug)]
+pub struct TakeInfo {
+    path: String,
+    format: &'static str,
+    markers: usize,
+    frames: usize,
+    frame_rate_hz: f64,
+    first_frame: u32,
+    duration_s: f64,
+    units: String,
+    up_axis: String,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    processor: Option<&'static str>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    storage: Option<&'static str>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    vendor: Option<String>,
+    analog_channels: usize,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    analog_rate_hz: Option<f64>,
+    analog_labels: Vec<String>,
+    events: usize,
+    warnings: Vec<String>,
+    gaps: GapStatistics,
+}
+
+/// Runs `locap info`.
+pub fn run(args: Args) -> Result<ExitCode> {
+    let files = inputs::expand(&args.files, &["c3d", "trc"])?;
+    let results: Vec<(PathBuf, Result<TakeInfo>)> =
+        files.par_iter().map(|p| (p.clone(), describe(p))).collect();
+    let mut failed = 0;
+    let mut infos = Vec::new();
+    for (path, result) in results {
+        match result {
+            Ok(info) => infos.push(info),
+            Err(err) => {
+                failed += 1;
+                crate::report_failure(&path, &err);
+            }
+        }
+    }
+    let text = if args.json {
+        let mut text = if infos.len() == 1 && files.len() == 1 {
+            serde_json::to_string_pretty(&infos[0])?
+        } else {
+            serde_json::to_string_pretty(&infos)?
+        };
+        text.push('\n');
+        text
+    } else {
+        infos.iter().map(format_text).collect()
+    };
+    crate::emit(&text)?;
+    Ok(if failed > 0 {
+        ExitCode::from(1)
+    } else {
+        ExitCode::SUCCESS
+    })
+}
+
+/// Reads one take and gathers its description.
+pub fn describe(path: &Path) -> Result<TakeInfo> {
+    if inputs::has_extension(path, &["trc"]) {
+        let take = locap_io::trc::read_trc_path(path)?;
+        return Ok(TakeInfo {
+            path: path.display().to_string(),
+            format: "TRC",
+            markers: take.marker_count(),
+            frames: take.frame_count(),
+            frame_rate_hz: take.frame_rate_hz(),
+            first_frame: take.first_frame,
+            duration_s: take.duration_s(),
+            units: "mm".into(),
+            up_axis: format!("{:?}", take.up_axis),
+            processor: None,
+            storage: None,
+            vendor: None,
+            analog_channels: 0,
+            analog_rate_hz: None,
+            analog_labels: Vec::new(),
+            events: 0,
+            warnings: Vec::new(),
+            gaps: GapStatistics::of_take(&take),
+        });
+    }
+    let file = c3d::read_path(path)?;
+    let take = file.to_take().map_err(|e| e.in_file(path))?;
+    let analog = file.analog_info();
+    let events = file
+        .parameters
+        .get("EVENT", "USED")
+        .and_then(|p| p.as_i64())
+        .map(|n| n.max(0) as usize)
+        .unwrap_or(file.header.events.len());
+    Ok(TakeInfo {
+        path: path.display().to_string(),
+        format: "C3D",
+        markers: take.marker_count(),
+        frames: take.frame_count(),
+        frame_rate_hz: take.frame_rate_hz(),
+        first_frame: take.first_frame,
+        duration_s: take.duration_s(),
+        units: file.point_unit().to_string(),
+        up_axis: format!("{:?}", take.up_axis),
+        processor: Some(file.processor.name()),
+        storage: Some(match file.storage {
+            c3d::Storage::Int => "int16",
+            c3d::Storage::Float => "float32",
+        }),
+        vendor: file.manufacturer(),
+        analog_channels: analog.labels.len(),
+        analog_rate_hz: (!analog.labels.is_empty()).then_some(analog.rate_hz),
+        analog_labels: analog.labels,
+        events,
+        warnings: file.warnings.clone(),
+        gaps: GapStatistics::of_take(&take),
+    })
+}
+
+fn format_text(info: &TakeInfo) -> String {
+    use std::fmt::Write;
+    let mut s = String::new();
+    let _ = writeln!(s, "{}", info.path);
+    let _ = writeln!(
+        s,
+        "  {} {}, {} markers x {} frames at {} Hz ({:.2} s, first frame {}), units {}, {}-up",
+        info.format,
+        [info.processor, info.storage]
+            .iter()
+            .flatten()
+            .copied()
+            .collect::<Vec<_>>()
+            .join(" "),
+        info.markers,
+        info.frames,
+        info.frame_rate_hz,
+        info.duration_s,
+        info.first_frame,
+        info.units,
+        info.up_axis
+    );
+    if let Some(v) = &info.vendor {
+        let _ = writeln!(s, "  vendor: {v}");
+    }
+    if info.analog_channels > 0 {
+        let _ = writeln!(
+            s,
+            "  analog: {} channels at {} Hz",
+            info.analog_channels,
+            info.analog_rate_hz.unwrap_or(0.0)
+        );
+    }
+    if info.events > 0 {
+        let _ = writeln!(s, "  events: {}", info.events);
+    }
+    for w in &info.warnings {
+        let _ = writeln!(s, "  warning: {w}");
+    }
+    let g = &info.gaps;
+    let _ = writeln!(
+        s,
+        "  missing: {:.2}% of samples in {} gaps",
+        100.0 * g.missing_fraction(),
+        g.gap_count()
+    );
+    if !g.markers.is_empty() {
+        let width = g
+            .markers
+            .iter()
+            .map(|m| m.name.len())
+            .max()
+            .unwrap_or(6)
+            .max(6);
+        let _ = writeln!(
+            s,
+            "  {:<width$}  {:>8}  {:>5}  {:>12}",
+            "marker", "missing", "gaps", "longest gap"
+        );
+        for m in &g.markers {
+            let _ = writeln!(
+                s,
+                "  {:<width$}  {:>7.2}%  {:>5}  {:>12}",
+                m.name,
+                100.0 * m.missing_fraction(),
+                m.gap_count,
+                m.longest_gap
+            );
+        }
+    }
+    s
+}

@@ -1,0 +1,464 @@
+//! C3D: the binary format of optical motion capture, read and written losslessly.
+//!
+//! Implements the C3D file format as documented in the C3D User Guide (c3d.org, "The C3D File
+//! Format"): a 512-byte header block, a parameter section of 512-byte blocks ([`params`]),
+//! and a data section holding, per frame, every 3D point (x, y, z, residual word) followed by
+//! the analog samples of that frame. Integer files store coordinates as `i16 * POINT:SCALE`;
+//! a negative `POINT:SCALE` means IEEE (or VAX, or big-endian) floats instead.
+//!
+//! # What locap keeps
+//! [`C3dFile`] holds the header, every parameter record in file order, the raw point words
+//! and the raw analog samples. [`C3dFile::to_take`] derives a [`Take`] (millimetres, explicit
+//! missing samples); [`C3dFile::set_take`] puts edited points back. [`write`] changes only
+//! what locap changed: point data, point labels if relabeled, and the bookkeeping parameters
+//! that describe them (`POINT:USED`, `POINT:FRAMES`, `POINT:DATA_START`, `POINT:SCALE`,
+//! `TRIAL:ACTUAL_*_FIELD`). Every other parameter, the header events and the analog data are
+//! carried through. Two deliberate changes: the output is always Intel (processor type 84),
+//! which every reader supports, and the optional "3D label and range" section of old files
+//! (header word 148) is dropped because nothing references it.
+//!
+//! # Missing samples
+//! A sample is missing if its residual word is negative (the standard) **or** all three
+//! coordinates are exactly zero (CMU and several exporters write zeros) or a coordinate is
+//! not finite. locap writes missing samples as zeros with residual -1, which every reader
+//! understands.
+//!
+//! # Robustness
+//! Counts read from the file are checked against the file's size before anything is
+//! allocated, and every malformed structure gives [`Error::Binary`] with the byte offset and
+//! section; no input makes the reader panic (a fuzz target checks this).
+
+mod params;
+mod processor;
+mod read;
+mod write;
+
+pub use params::{Group, ParamData, Parameter, Parameters, Record};
+pub use processor::Processor;
+pub use read::{ReadOptions, read, read_path, read_path_with, read_with};
+pub use write::{write, write_path};
+
+use crate::{Error, Result};
+use locap_core::take::SampleQuality;
+use locap_core::{LengthUnit, MarkerName, Take, UpAxis, Vec3};
+
+/// How numbers of the data section are stored (the sign of `POINT:SCALE`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Storage {
+    /// 16-bit integers, coordinates multiplied by `|POINT:SCALE|`.
+    Int,
+    /// 32-bit floats.
+    Float,
+}
+
+/// One event stored in the header (C3D header words 150-234).
+#[derive(Debug, Clone, PartialEq)]
+pub struct HeaderEvent {
+    /// Event time in seconds.
+    pub time_s: f32,
+    /// Display flag (0 = off).
+    pub display: u8,
+    /// Four-character label.
+    pub label: [u8; 4],
+}
+
+/// The fields of the 512-byte header that locap interprets; the rest is carried through.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Header {
+    /// First byte of the file: the 1-based block of the parameter section.
+    pub parameter_block: u8,
+    /// Number of 3D points (word 2).
+    pub point_count: u16,
+    /// Analog samples per 3D frame, all channels together (word 3).
+    pub analog_per_frame: u16,
+    /// First frame number (word 4).
+    pub first_frame: u16,
+    /// Last frame number (word 5; overflows on long takes, see [`C3dFile::frames`]).
+    pub last_frame: u16,
+    /// Maximum interpolation gap (word 6).
+    pub max_gap: u16,
+    /// Point scale factor (words 7-8), negative for float storage.
+    pub scale: f32,
+    /// 1-based block of the data section (word 9).
+    pub data_block: u16,
+    /// Analog samples per channel per 3D frame (word 10).
+    pub analog_per_channel: u16,
+    /// 3D frame rate in Hz (words 11-12).
+    pub frame_rate_hz: f32,
+    /// Whether 4-character event labels are used (word 150 = 12345).
+    pub events_key: bool,
+    /// Events (at most 18).
+    pub events: Vec<HeaderEvent>,
+    /// The 512 bytes as read, for the bytes locap does not interpret.
+    pub raw: Vec<u8>,
+}
+
+/// The raw analog samples: per 3D frame, `analog_per_frame` values (sub-sample major,
+/// channel minor), exactly as stored.
+#[derive(Debug, Clone, PartialEq)]
+pub enum AnalogSamples {
+    /// Integer storage (interpreted as unsigned when `ANALOG:FORMAT` is `UNSIGNED`).
+    Int(Vec<i16>),
+    /// Float storage.
+    Float(Vec<f32>),
+}
+
+impl AnalogSamples {
+    /// Number of samples.
+    pub fn len(&self) -> usize {
+        match self {
+            AnalogSamples::Int(v) => v.len(),
+            AnalogSamples::Float(v) => v.len(),
+        }
+    }
+
+    /// True if there are no samples.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+}
+
+/// A whole C3D file.
+#[derive(Debug, Clone, PartialEq)]
+pub struct C3dFile {
+    /// Processor type of the file as read (written files are always Intel).
+    pub processor: Processor,
+    /// Header fields.
+    pub header: Header,
+    /// Parameter section.
+    pub parameters: Parameters,
+    /// Storage of the data section.
+    pub storage: Storage,
+    /// Number of 3D frames.
+    pub frames: usize,
+    /// Number of 3D points per frame.
+    pub point_count: usize,
+    /// Point words, frame-major: `[x, y, z, residual word]` in the file's point unit (integer
+    /// coordinates already multiplied by the scale; the residual word as stored).
+    pub points: Vec<[f32; 4]>,
+    /// Analog samples.
+    pub analog: AnalogSamples,
+    /// Things that were odd but readable (header and parameters disagreeing, ...).
+    pub warnings: Vec<String>,
+}
+
+/// Summary of the analog channels of a file.
+#[derive(Debug, Clone, PartialEq)]
+pub struct AnalogInfo {
+    /// Channel labels.
+    pub labels: Vec<String>,
+    /// Channel units.
+    pub units: Vec<String>,
+    /// Analog sample rate in Hz.
+    pub rate_hz: f64,
+    /// Samples per channel per 3D frame.
+    pub samples_per_frame: usize,
+}
+
+impl C3dFile {
+    /// Point labels: `POINT:LABELS`, `LABELS2`, ..., completed with `*N` for unnamed points.
+    pub fn point_labels(&self) -> Vec<String> {
+        let mut labels = self.parameters.continued_strings("POINT", "LABELS");
+        labels.truncate(self.point_count);
+        while labels.len() < self.point_count {
+            labels.push(format!("*{}", labels.len()));
+        }
+        for (i, l) in labels.iter_mut().enumerate() {
+            if l.is_empty() {
+                *l = format!("*{i}");
+            }
+        }
+        labels
+    }
+
+    /// Unit of point coordinates (`POINT:UNITS`; millimetres if absent or unknown).
+    pub fn point_unit(&self) -> LengthUnit {
+        self.parameters
+            .get("POINT", "UNITS")
+            .and_then(|p| p.strings().first().and_then(|s| LengthUnit::parse(s)))
+            .unwrap_or(LengthUnit::Millimetre)
+    }
+
+    /// Magnitude of the point scale factor (`POINT:SCALE`, else the header's).
+    pub fn point_scale(&self) -> f32 {
+        Self::point_scale_of(&self.parameters, self.header.scale)
+    }
+
+    pub(crate) fn point_scale_of(parameters: &Parameters, header_scale: f32) -> f32 {
+        let s = parameters
+            .get("POINT", "SCALE")
+            .and_then(|p| p.as_f64())
+            .map(|s| s as f32)
+            .filter(|s| s.is_finite() && *s != 0.0)
+            .unwrap_or(header_scale);
+        if s.is_finite() && s != 0.0 {
+            s.abs()
+        } else {
+            1.0
+        }
+    }
+
+    /// 3D frame rate in Hz (`POINT:RATE`, else the header's).
+    pub fn frame_rate_hz(&self) -> f64 {
+        self.parameters
+            .get("POINT", "RATE")
+            .and_then(|p| p.as_f64())
+            .filter(|r| r.is_finite() && *r > 0.0)
+            .unwrap_or(self.header.frame_rate_hz as f64)
+    }
+
+    /// First frame number (`TRIAL:ACTUAL_START_FIELD` if present, else the header's).
+    pub fn first_frame(&self) -> u32 {
+        trial_field(&self.parameters, "ACTUAL_START_FIELD")
+            .unwrap_or(self.header.first_frame as u32)
+    }
+
+    /// Which axis is up, from `POINT:Y_SCREEN` (`+Y` means Y-up); Z-up by default.
+    pub fn up_axis(&self) -> UpAxis {
+        match self
+            .parameters
+            .get("POINT", "Y_SCREEN")
+            .and_then(|p| p.strings().into_iter().next())
+        {
+            Some(s) if s.trim().ends_with('Y') => UpAxis::Y,
+            _ => UpAxis::Z,
+        }
+    }
+
+    /// Analog channel summary.
+    pub fn analog_info(&self) -> AnalogInfo {
+        let channels = self
+            .parameters
+            .get("ANALOG", "USED")
+            .and_then(|p| p.as_i64())
+            .filter(|c| *c > 0)
+            .map(|c| c as usize)
+            .unwrap_or(0);
+        let samples_per_frame = match (channels, self.header.analog_per_frame as usize) {
+            (0, _) => 0,
+            (c, n) => n / c,
+        };
+        let rate_hz = self
+            .parameters
+            .get("ANALOG", "RATE")
+            .and_then(|p| p.as_f64())
+            .filter(|r| r.is_finite() && *r > 0.0)
+            .unwrap_or(self.frame_rate_hz() * samples_per_frame as f64);
+        let mut labels = self.parameters.continued_strings("ANALOG", "LABELS");
+        labels.resize(channels, String::new());
+        let mut units = self.parameters.continued_strings("ANALOG", "UNITS");
+        units.resize(channels, String::new());
+        AnalogInfo {
+            labels,
+            units,
+            rate_hz,
+            samples_per_frame,
+        }
+    }
+
+    /// Vendor / manufacturer, from `MANUFACTURER:COMPANY` and `SOFTWARE`, if recorded.
+    pub fn manufacturer(&self) -> Option<String> {
+        let company = self
+            .parameters
+            .get("MANUFACTURER", "COMPANY")
+            .and_then(|p| p.strings().into_iter().next());
+        let software = self
+            .parameters
+            .get("MANUFACTURER", "SOFTWARE")
+            .and_then(|p| p.strings().into_iter().next());
+        match (company, software) {
+            (Some(c), Some(s)) if !s.is_empty() => Some(format!("{c} ({s})")),
+            (Some(c), _) if !c.is_empty() => Some(c),
+            (_, Some(s)) if !s.is_empty() => Some(s),
+            _ => None,
+        }
+    }
+
+    /// The marker take: positions in millimetres, missing samples explicit (see the module
+    /// doc for the rules), residuals and camera masks kept as [`SampleQuality`].
+    pub fn to_take(&self) -> Result<Take> {
+        let names: Vec<MarkerName> = self
+            .point_labels()
+            .iter()
+            .map(|l| MarkerName::parse(l))
+            .collect();
+        let mm = self.point_unit().mm_per_unit();
+        let scale = self.point_scale();
+        let rate = self.frame_rate_hz();
+        let rate = if rate.is_finite() && rate > 0.0 {
+            rate
+        } else {
+            1.0
+        };
+        let mut take = Take::empty(names, self.frames, rate)?;
+        take.first_frame = self.first_frame();
+        take.up_axis = self.up_axis();
+        let m = self.point_count;
+        for (i, w) in self.points.iter().enumerate() {
+            if let Some(p) = decode_position(w) {
+                let (frame, marker) = (i / m, i % m);
+                take.set_position_mm(frame, marker, Some(p * mm))?;
+                let word = w[3] as i32;
+                take.set_quality(
+                    frame,
+                    marker,
+                    SampleQuality {
+                        residual_mm: (word & 0xff) as f32 * scale * mm as f32,
+                        cameras: ((word >> 8) & 0xff) as u8,
+                    },
+                );
+            }
+        }
+        Ok(take)
+    }
+
+    /// Replaces the point data with `take` (positions converted back to the file's unit).
+    /// Marker count and names may change (relabeling); the frame count may change only if
+    /// the file has no analog data, since analog samples are tied to 3D frames.
+    pub fn set_take(&mut self, take: &Take) -> Result<()> {
+        let frames = take.frame_count();
+        if frames != self.frames && !self.analog.is_empty() {
+            return Err(Error::Unwritable(format!(
+                "the take has {frames} frames but the file's analog data covers {}; \
+                 cutting analog data is not supported",
+                self.frames
+            )));
+        }
+        let mm = self.point_unit().mm_per_unit();
+        let scale = self.point_scale();
+        let m = take.marker_count();
+        let mut points = Vec::with_capacity(frames * m);
+        for f in 0..frames {
+            for k in 0..m {
+                points.push(match take.position_mm(f, k) {
+                    Some(p) => {
+                        let q = take.quality(f, k);
+                        let residual = (q.residual_mm as f64 / mm / scale as f64)
+                            .round()
+                            .clamp(0.0, 255.0) as i32;
+                        let word = ((q.cameras as i32) << 8) | residual;
+                        let p = p / mm;
+                        [p.x as f32, p.y as f32, p.z as f32, word as f32]
+                    }
+                    None => [0.0, 0.0, 0.0, -1.0],
+                });
+            }
+        }
+        let labels: Vec<String> = take.markers().iter().map(|n| n.full()).collect();
+        if labels != self.point_labels() {
+            self.parameters
+                .set_continued_strings("POINT", "LABELS", &labels);
+        }
+        if let Some(desc) = self.parameters.get("POINT", "DESCRIPTIONS") {
+            let mut d = desc.strings();
+            if d.len() != m {
+                d.resize(m, String::new());
+                self.parameters
+                    .set_continued_strings("POINT", "DESCRIPTIONS", &d);
+            }
+        }
+        self.points = points;
+        self.point_count = m;
+        self.frames = frames;
+        self.header.first_frame = take.first_frame.min(u16::MAX as u32) as u16;
+        if let Some(p) = self.parameters.get_mut("TRIAL", "ACTUAL_START_FIELD") {
+            set_trial_field(p, take.first_frame);
+        }
+        Ok(())
+    }
+
+    /// A new file holding just `take` (float storage, millimetres, no analog data), for
+    /// converting other formats to C3D.
+    pub fn from_take(take: &Take) -> Result<C3dFile> {
+        let mut parameters = Parameters::default();
+        let rate = take.frame_rate_hz() as f32;
+        parameters.set("POINT", "USED", vec![], ParamData::Int(vec![0]));
+        parameters.set("POINT", "SCALE", vec![], ParamData::Float(vec![-0.1]));
+        parameters.set("POINT", "RATE", vec![], ParamData::Float(vec![rate]));
+        parameters.set("POINT", "DATA_START", vec![], ParamData::Int(vec![0]));
+        parameters.set("POINT", "FRAMES", vec![], ParamData::Int(vec![0]));
+        parameters.set_strings("POINT", "UNITS", &["mm".to_string()]);
+        parameters.set_continued_strings("POINT", "LABELS", &[]);
+        parameters.set_strings("POINT", "X_SCREEN", &["+X".to_string()]);
+        let up = match take.up_axis {
+            UpAxis::Y => "+Y",
+            UpAxis::Z => "+Z",
+        };
+        parameters.set_strings("POINT", "Y_SCREEN", &[up.to_string()]);
+        parameters.set("ANALOG", "USED", vec![], ParamData::Int(vec![0]));
+        parameters.set("ANALOG", "RATE", vec![], ParamData::Float(vec![rate]));
+        parameters.set_strings(
+            "MANUFACTURER",
+            "SOFTWARE",
+            &[format!("locap {}", env!("CARGO_PKG_VERSION"))],
+        );
+        let mut file = C3dFile {
+            processor: Processor::Intel,
+            header: Header {
+                parameter_block: 2,
+                point_count: 0,
+                analog_per_frame: 0,
+                first_frame: 1,
+                last_frame: 0,
+                max_gap: 0,
+                scale: -0.1,
+                data_block: 0,
+                analog_per_channel: 0,
+                frame_rate_hz: rate,
+                events_key: true,
+                events: Vec::new(),
+                raw: vec![0; 512],
+            },
+            parameters,
+            storage: Storage::Float,
+            frames: 0,
+            point_count: 0,
+            points: Vec::new(),
+            analog: AnalogSamples::Float(Vec::new()),
+            warnings: Vec::new(),
+        };
+        file.set_take(take)?;
+        Ok(file)
+    }
+}
+
+/// Position of a point word in the file's unit, or `None` if the sample is missing.
+fn decode_position(w: &[f32; 4]) -> Option<Vec3> {
+    let finite = w[0].is_finite() && w[1].is_finite() && w[2].is_finite();
+    let all_zero = w[0] == 0.0 && w[1] == 0.0 && w[2] == 0.0;
+    // `!(>= 0)` also treats a NaN residual as missing.
+    if !finite || all_zero || !(w[3] >= 0.0) {
+        return None;
+    }
+    Some(Vec3::new(w[0] as f64, w[1] as f64, w[2] as f64))
+}
+
+/// Reads a `TRIAL:ACTUAL_*_FIELD` parameter: two 16-bit words forming an unsigned 32-bit
+/// frame number (low word first), the C3D way of numbering frames past 65535.
+fn trial_field(params: &Parameters, name: &str) -> Option<u32> {
+    let p = params.get("TRIAL", name)?;
+    match &p.data {
+        ParamData::Int(v) if v.len() >= 2 => {
+            Some(v[0] as u16 as u32 | ((v[1] as u16 as u32) << 16))
+        }
+        ParamData::Int(v) if v.len() == 1 => Some(v[0] as u16 as u32),
+        ParamData::Float(v) => v
+            .first()
+            .filter(|x| x.is_finite() && **x >= 0.0)
+            .map(|x| *x as u32),
+        _ => None,
+    }
+    .filter(|f| *f > 0)
+}
+
+fn set_trial_field(p: &mut Parameter, frame: u32) {
+    match &mut p.data {
+        ParamData::Int(v) if v.len() >= 2 => {
+            v[0] = (frame & 0xffff) as u16 as i16;
+            v[1] = (frame >> 16) as u16 as i16;
+        }
+        ParamData::Int(v) if v.len() == 1 => v[0] = frame.min(u16::MAX as u32) as u16 as i16,
+        ParamData::Float(v) if !v.is_empty() => v[0] = frame as f32,
+        _ => {}
+    }
+}

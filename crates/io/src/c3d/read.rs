@@ -1,0 +1,511 @@
+//! The C3D reader: header, parameter section, data section.
+
+use super::params::{Group, ParamData, Parameter, Parameters, Record};
+use super::{AnalogSamples, C3dFile, Header, HeaderEvent, Processor, Storage, trial_field};
+use crate::{Error, Result};
+use std::path::Path;
+
+const BLOCK: usize = 512;
+
+/// How forgiving the reader is.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct ReadOptions {
+    /// Fail on a truncated data section instead of reading the complete frames it holds
+    /// (with a warning in [`C3dFile::warnings`]). Off by default: a capture cut short by a
+    /// crash still holds good frames, and the reference reader ezc3d reads them too.
+    pub strict: bool,
+}
+
+/// Reads a C3D file from disk with default options. Errors name the file.
+pub fn read_path(path: &Path) -> Result<C3dFile> {
+    read_path_with(path, ReadOptions::default())
+}
+
+/// Reads a C3D file from disk. Errors name the file.
+pub fn read_path_with(path: &Path, options: ReadOptions) -> Result<C3dFile> {
+    let bytes = std::fs::read(path).map_err(|e| Error::from(e).in_file(path))?;
+    read_with(&bytes, options).map_err(|e| e.in_file(path))
+}
+
+/// Reads a C3D file held in memory with default options.
+pub fn read(bytes: &[u8]) -> Result<C3dFile> {
+    read_with(bytes, ReadOptions::default())
+}
+
+/// Reads a C3D file held in memory.
+pub fn read_with(bytes: &[u8], options: ReadOptions) -> Result<C3dFile> {
+    if bytes.len() < BLOCK {
+        return Err(binary(
+            "header",
+            0,
+            format!("file is {} bytes, a C3D header alone is 512", bytes.len()),
+        ));
+    }
+    if bytes[1] != 0x50 {
+        return Err(binary(
+            "header",
+            1,
+            format!("second byte is 0x{:02x}, a C3D file has 0x50", bytes[1]),
+        ));
+    }
+    let param_block = bytes[0] as usize;
+    if param_block == 0 {
+        return Err(binary(
+            "header",
+            0,
+            "parameter section block number is 0".to_string(),
+        ));
+    }
+    let param_offset = (param_block - 1) * BLOCK;
+    if param_offset + 4 > bytes.len() {
+        return Err(binary(
+            "header",
+            0,
+            format!(
+                "parameter section at block {param_block} (byte {param_offset}) lies past the end of the {}-byte file",
+                bytes.len()
+            ),
+        ));
+    }
+    let processor = Processor::from_byte(bytes[param_offset + 3]).ok_or_else(|| {
+        binary(
+            "parameter section",
+            (param_offset + 3) as u64,
+            format!(
+                "processor type {} is not 84 (Intel), 85 (DEC) or 86 (MIPS)",
+                bytes[param_offset + 3]
+            ),
+        )
+    })?;
+    let header = read_header(bytes, processor);
+    let mut warnings = Vec::new();
+    // The parameter section ends where the data section starts (when that lies after it):
+    // its declared block count is wrong in several vendors' files.
+    // Records beyond both the declared blocks and the data start are still read if the chain
+    // of offsets leads there (c3d.org sample 18 overlaps its data block); the bound only keeps
+    // reads inside the file.
+    let data_hint = read_u16_word(bytes, processor, 9) as usize;
+    let declared_end = param_offset + (bytes[param_offset + 2] as usize).max(1) * BLOCK;
+    let param_end = match data_hint.saturating_sub(1) * BLOCK {
+        d if d > param_offset => d.max(declared_end).min(bytes.len()),
+        _ => bytes.len(),
+    };
+    let parameters = read_parameters(bytes, param_offset, param_end, processor, &mut warnings)?;
+
+    let storage = if header.scale < 0.0 {
+        Storage::Float
+    } else {
+        Storage::Int
+    };
+    let word = match storage {
+        Storage::Int => 2,
+        Storage::Float => 4,
+    };
+    let point_count = header.point_count as usize;
+    if let Some(used) = parameters.get("POINT", "USED").and_then(|p| p.as_i64()) {
+        if used as u16 as usize != point_count {
+            warnings.push(format!("header says {point_count} points, POINT:USED says {used}; the header defines the data layout"));
+        }
+    }
+    let analog_per_frame = header.analog_per_frame as usize;
+    let frame_bytes = (point_count * 4 + analog_per_frame) * word;
+
+    let data_block = match header.data_block {
+        0 => parameters
+            .get("POINT", "DATA_START")
+            .and_then(|p| p.as_i64())
+            .unwrap_or(0) as u16 as usize,
+        b => b as usize,
+    };
+    let data_offset = data_block.saturating_sub(1) * BLOCK;
+    let available = if frame_bytes == 0 {
+        usize::MAX
+    } else if data_offset > bytes.len() || data_block == 0 {
+        0
+    } else {
+        (bytes.len() - data_offset) / frame_bytes
+    };
+    let frames = frame_count(&header, &parameters, available, &mut warnings);
+    if frame_bytes > 0 && frames > 0 {
+        if data_block == 0 {
+            return Err(binary(
+                "header",
+                16,
+                "data section block number is 0".to_string(),
+            ));
+        }
+        if frames > available {
+            let message = format!(
+                "truncated: {frames} frames of {frame_bytes} bytes declared from byte {data_offset}, \
+                 but the {}-byte file holds only {available} complete frames",
+                bytes.len()
+            );
+            if options.strict || available == 0 {
+                return Err(binary(
+                    "data section",
+                    (data_offset + available * frame_bytes) as u64,
+                    message,
+                ));
+            }
+            warnings.push(format!("{message}; read those {available}"));
+        }
+    }
+    let frames = frames.min(available);
+
+    let scale = super::C3dFile::point_scale_of(&parameters, header.scale);
+    let mut points = Vec::with_capacity(frames * point_count);
+    let mut analog_int = Vec::new();
+    let mut analog_float = Vec::new();
+    match storage {
+        Storage::Int => analog_int.reserve(frames * analog_per_frame),
+        Storage::Float => analog_float.reserve(frames * analog_per_frame),
+    }
+    for f in 0..frames {
+        let mut at = data_offset + f * frame_bytes;
+        for _ in 0..point_count {
+            points.push(match storage {
+                Storage::Int => {
+                    let v: [i16; 4] = std::array::from_fn(|k| {
+                        processor.i16([bytes[at + 2 * k], bytes[at + 2 * k + 1]])
+                    });
+                    [
+                        v[0] as f32 * scale,
+                        v[1] as f32 * scale,
+                        v[2] as f32 * scale,
+                        v[3] as f32,
+                    ]
+                }
+                Storage::Float => std::array::from_fn(|k| {
+                    let b = at + 4 * k;
+                    processor.f32([bytes[b], bytes[b + 1], bytes[b + 2], bytes[b + 3]])
+                }),
+            });
+            at += 4 * word;
+        }
+        for _ in 0..analog_per_frame {
+            match storage {
+                Storage::Int => analog_int.push(processor.i16([bytes[at], bytes[at + 1]])),
+                Storage::Float => analog_float.push(processor.f32([
+                    bytes[at],
+                    bytes[at + 1],
+                    bytes[at + 2],
+                    bytes[at + 3],
+                ])),
+            }
+            at += word;
+        }
+    }
+    let analog = match storage {
+        Storage::Int => AnalogSamples::Int(analog_int),
+        Storage::Float => AnalogSamples::Float(analog_float),
+    };
+    Ok(C3dFile {
+        processor,
+        header,
+        parameters,
+        storage,
+        frames,
+        point_count,
+        points,
+        analog,
+        warnings,
+    })
+}
+
+/// Decides the number of 3D frames. The header's 16-bit first/last frame words overflow past
+/// 65535 frames, so `TRIAL:ACTUAL_*_FIELD` (32-bit) and `POINT:FRAMES` (read as unsigned) are
+/// preferred when they are consistent with the file's size.
+fn frame_count(
+    header: &Header,
+    params: &Parameters,
+    available: usize,
+    warnings: &mut Vec<String>,
+) -> usize {
+    let from_header = if header.last_frame >= header.first_frame && header.last_frame > 0 {
+        (header.last_frame - header.first_frame) as usize + 1
+    } else {
+        0
+    };
+    let from_trial = match (
+        trial_field(params, "ACTUAL_START_FIELD"),
+        trial_field(params, "ACTUAL_END_FIELD"),
+    ) {
+        (Some(s), Some(e)) if e >= s => Some((e - s) as usize + 1),
+        _ => None,
+    };
+    let from_point = params.get("POINT", "FRAMES").and_then(|p| match &p.data {
+        ParamData::Int(v) => v.first().map(|x| *x as u16 as usize),
+        ParamData::Float(v) => v
+            .first()
+            .filter(|x| x.is_finite() && **x >= 0.0)
+            .map(|x| *x as usize),
+        _ => None,
+    });
+    for candidate in [from_trial, from_point].into_iter().flatten() {
+        // Longer than the header says: the 16-bit header words overflowed. Shorter, when the
+        // header's count does not fit in the file: the header is wrong (Optotrak writes a
+        // bogus last frame) and the parameters agree with the data actually present.
+        let longer = candidate > from_header && candidate <= available;
+        let header_impossible = from_header > available && candidate <= available && candidate > 0;
+        if longer || header_impossible {
+            warnings.push(format!("header frame range gives {from_header} frames; using {candidate} from the parameters"));
+            return candidate;
+        }
+    }
+    from_header
+}
+
+fn read_u16_word(b: &[u8], p: Processor, n: usize) -> u16 {
+    p.u16([b[2 * (n - 1)], b[2 * (n - 1) + 1]])
+}
+
+fn read_header(b: &[u8], p: Processor) -> Header {
+    let word = |n: usize| p.u16([b[2 * (n - 1)], b[2 * (n - 1) + 1]]);
+    let float = |n: usize| {
+        let i = 2 * (n - 1);
+        p.f32([b[i], b[i + 1], b[i + 2], b[i + 3]])
+    };
+    let events_key = word(150) == 12345;
+    let event_count = (word(151) as usize).min(18);
+    let events = (0..event_count)
+        .map(|i| HeaderEvent {
+            time_s: float(153 + 2 * i),
+            display: b[376 + i],
+            label: [
+                b[396 + 4 * i],
+                b[397 + 4 * i],
+                b[398 + 4 * i],
+                b[399 + 4 * i],
+            ],
+        })
+        .collect();
+    Header {
+        parameter_block: b[0],
+        point_count: word(2),
+        analog_per_frame: word(3),
+        first_frame: word(4),
+        last_frame: word(5),
+        max_gap: word(6),
+        scale: float(7),
+        data_block: word(9),
+        analog_per_channel: word(10),
+        frame_rate_hz: float(11),
+        events_key,
+        events,
+        raw: b[..BLOCK].to_vec(),
+    }
+}
+
+/// Reads parameter records until a zero name length, a zero offset, or the end of the
+/// declared parameter blocks.
+fn read_parameters(
+    bytes: &[u8],
+    start: usize,
+    end: usize,
+    p: Processor,
+    warnings: &mut Vec<String>,
+) -> Result<Parameters> {
+    let mut records = Vec::new();
+    let mut at = start + 4;
+    let section = "parameter section";
+    loop {
+        if at + 2 > end {
+            break;
+        }
+        let name_len_raw = bytes[at] as i8;
+        if name_len_raw == 0 {
+            break;
+        }
+        let locked = name_len_raw < 0;
+        let name_len = name_len_raw.unsigned_abs() as usize;
+        let id = bytes[at + 1] as i8;
+        let name_at = at + 2;
+        let offset_at = name_at + name_len;
+        if offset_at + 2 > end {
+            return Err(binary(
+                section,
+                at as u64,
+                format!(
+                    "record name of {name_len} bytes runs past the parameter section end (byte {end})"
+                ),
+            ));
+        }
+        let name = String::from_utf8_lossy(&bytes[name_at..offset_at])
+            .trim_end_matches([' ', '\0'])
+            .to_string();
+        let next = p.i16([bytes[offset_at], bytes[offset_at + 1]]);
+        let payload = offset_at + 2;
+        // The last record may point nowhere (offset 0); its payload then ends at the section end.
+        let record_end = if next > 0 {
+            (offset_at + next as usize).min(end)
+        } else {
+            end
+        };
+        if id == 0 {
+            warnings.push(format!(
+                "record {name:?} at byte {at} has group id 0; skipped"
+            ));
+        } else if id < 0 {
+            let desc = description(bytes, payload, record_end);
+            records.push(Record::Group(Group {
+                id: id.unsigned_abs(),
+                name: name.clone(),
+                locked,
+                description: desc,
+            }));
+        } else {
+            match read_parameter(
+                bytes,
+                payload,
+                record_end,
+                p,
+                id as u8,
+                name.clone(),
+                locked,
+            ) {
+                Ok(param) => records.push(Record::Parameter(param)),
+                Err(e) if next <= 0 => {
+                    // A broken *last* record (e.g. c3d.org sample 18's empty group with offset
+                    // -1) does not make the rest of the file unreadable.
+                    warnings.push(format!(
+                        "last parameter record {name:?} is malformed and was skipped: {e}"
+                    ));
+                    break;
+                }
+                Err(e) => return Err(e),
+            }
+        }
+        if next <= 0 {
+            if next < 0 {
+                warnings.push(format!("record {name:?} at byte {at} has negative offset {next}; parameter section ends there"));
+            }
+            break;
+        }
+        at = offset_at + next as usize;
+    }
+    // Parameters whose group is never declared are kept, but a file this broken is worth a
+    // warning (writers then emit a group record for them).
+    let groups: Vec<u8> = records
+        .iter()
+        .filter_map(|r| {
+            if let Record::Group(g) = r {
+                Some(g.id)
+            } else {
+                None
+            }
+        })
+        .collect();
+    let mut orphans: Vec<u8> = records
+        .iter()
+        .filter_map(|r| {
+            if let Record::Parameter(q) = r {
+                Some(q.group_id)
+            } else {
+                None
+            }
+        })
+        .filter(|id| !groups.contains(id))
+        .collect();
+    orphans.dedup();
+    for id in orphans {
+        warnings.push(format!(
+            "parameters refer to group {id}, which is never declared"
+        ));
+        records.push(Record::Group(Group {
+            id,
+            name: format!("GROUP{id}"),
+            locked: false,
+            description: Vec::new(),
+        }));
+    }
+    Ok(Parameters { records })
+}
+
+fn description(bytes: &[u8], at: usize, end: usize) -> Vec<u8> {
+    if at >= end {
+        return Vec::new();
+    }
+    let len = bytes[at] as usize;
+    let from = at + 1;
+    bytes[from.min(end)..(from + len).min(end)].to_vec()
+}
+
+fn read_parameter(
+    bytes: &[u8],
+    at: usize,
+    end: usize,
+    p: Processor,
+    group_id: u8,
+    name: String,
+    locked: bool,
+) -> Result<Parameter> {
+    let section = "parameter section";
+    let err = |offset: usize, message: String| {
+        binary(
+            section,
+            offset as u64,
+            format!("parameter {name:?}: {message}"),
+        )
+    };
+    if at + 2 > end {
+        return Err(err(
+            at,
+            "record ends before its type and dimension count".into(),
+        ));
+    }
+    let kind = bytes[at] as i8;
+    let ndims = bytes[at + 1] as usize;
+    let dims_at = at + 2;
+    if dims_at + ndims > end {
+        return Err(err(
+            at + 1,
+            format!("{ndims} dimensions run past the record end (byte {end})"),
+        ));
+    }
+    let dims = bytes[dims_at..dims_at + ndims].to_vec();
+    let count: usize = dims.iter().map(|d| *d as usize).product();
+    let size = match kind {
+        -1 | 1 => 1,
+        2 => 2,
+        4 => 4,
+        other => return Err(err(at, format!("data type {other} is not -1, 1, 2 or 4"))),
+    };
+    let data_at = dims_at + ndims;
+    let data_end = data_at + count * size;
+    if data_end > end {
+        return Err(err(
+            data_at,
+            format!(
+                "{count} values of {size} bytes (dimensions {dims:?}) run past the record end (byte {end})"
+            ),
+        ));
+    }
+    let raw = &bytes[data_at..data_end];
+    let data = match kind {
+        -1 => ParamData::Char(raw.to_vec()),
+        1 => ParamData::Byte(raw.to_vec()),
+        2 => ParamData::Int(raw.chunks_exact(2).map(|c| p.i16([c[0], c[1]])).collect()),
+        _ => ParamData::Float(
+            raw.chunks_exact(4)
+                .map(|c| p.f32([c[0], c[1], c[2], c[3]]))
+                .collect(),
+        ),
+    };
+    Ok(Parameter {
+        group_id,
+        name,
+        locked,
+        dims,
+        data,
+        description: description(bytes, data_end, end),
+    })
+}
+
+fn binary(section: &str, offset: u64, message: String) -> Error {
+    Error::Binary {
+        format: "C3D",
+        section: section.to_string(),
+        offset,
+        message,
+    }
+}

@@ -1,0 +1,348 @@
+//! The C3D writer: always Intel, parameters in their original order, point bookkeeping
+//! updated, everything else as read.
+
+use super::params::{ParamData, Parameter, Parameters, Record};
+use super::{AnalogSamples, C3dFile, Storage, set_trial_field};
+use crate::{Error, Result};
+use std::io::Write;
+use std::path::Path;
+
+const BLOCK: usize = 512;
+
+/// Writes `file` to `path` atomically (temporary file + rename).
+pub fn write_path(file: &C3dFile, path: &Path) -> Result<()> {
+    let bytes = to_bytes(file)?;
+    crate::atomic::write_atomically(path, |w| Ok(w.write_all(&bytes)?))
+}
+
+/// Writes `file` as Intel C3D.
+pub fn write(file: &C3dFile, w: &mut dyn Write) -> Result<()> {
+    w.write_all(&to_bytes(file)?)?;
+    Ok(())
+}
+
+/// Encodes `file` as Intel C3D bytes.
+pub fn to_bytes(file: &C3dFile) -> Result<Vec<u8>> {
+    if file.points.len() != file.frames * file.point_count {
+        return Err(Error::Unwritable(format!(
+            "{} point samples for {} frames x {} points",
+            file.points.len(),
+            file.frames,
+            file.point_count
+        )));
+    }
+    if file.point_count > u16::MAX as usize {
+        return Err(Error::Unwritable(format!(
+            "{} points; C3D holds at most 65535",
+            file.point_count
+        )));
+    }
+    let analog_per_frame = file.header.analog_per_frame as usize;
+    if file.analog.len() != file.frames * analog_per_frame {
+        return Err(Error::Unwritable(format!(
+            "{} analog samples for {} frames x {analog_per_frame} samples",
+            file.analog.len(),
+            file.frames
+        )));
+    }
+    // Integer files stay integer when every coordinate fits the 16-bit range at the file's
+    // scale, so unchanged samples keep their exact stored values; otherwise the whole file
+    // becomes float (analog integers convert to floats exactly).
+    let scale = file.point_scale();
+    let storage = match file.storage {
+        Storage::Int if fits_int(file, scale) => Storage::Int,
+        _ => Storage::Float,
+    };
+    let mut params = file.parameters.clone();
+    let signed_scale = match storage {
+        Storage::Int => scale,
+        Storage::Float => -scale,
+    };
+    update_number(&mut params, "POINT", "SCALE", signed_scale as f64, true);
+    update_number(&mut params, "POINT", "USED", file.point_count as f64, false);
+    let frames_value = file.frames as f64;
+    if file.frames > u16::MAX as usize {
+        // A 16-bit POINT:FRAMES cannot hold it: store a float, as several vendors do.
+        params.set(
+            "POINT",
+            "FRAMES",
+            vec![],
+            ParamData::Float(vec![file.frames as f32]),
+        );
+    } else {
+        update_number(&mut params, "POINT", "FRAMES", frames_value, false);
+    }
+    let first = super::trial_field(&params, "ACTUAL_START_FIELD")
+        .unwrap_or(file.header.first_frame as u32)
+        .max(1);
+    let last = first as u64 + (file.frames as u64).saturating_sub(1);
+    if let Some(p) = params.get_mut("TRIAL", "ACTUAL_END_FIELD") {
+        set_trial_field(p, last.min(u32::MAX as u64) as u32);
+    }
+    // POINT:DATA_START depends on the parameter section's size, which does not depend on its
+    // value (it is one int16), so size first, then fill in.
+    update_number(&mut params, "POINT", "DATA_START", 0.0, false);
+    let param_blocks = encode_parameters(&params, 0)?.len() / BLOCK;
+    let data_block = 2 + param_blocks;
+    if data_block > i16::MAX as usize {
+        return Err(Error::Unwritable("parameter section too large".into()));
+    }
+    update_number(&mut params, "POINT", "DATA_START", data_block as f64, false);
+    let param_bytes = encode_parameters(&params, param_blocks)?;
+
+    let mut out = Vec::with_capacity(BLOCK + param_bytes.len() + file.points.len() * 16);
+    out.extend(encode_header(
+        file,
+        storage,
+        signed_scale,
+        data_block,
+        first,
+        last,
+    ));
+    out.extend(param_bytes);
+    encode_data(file, storage, scale, &mut out)?;
+    let pad = (BLOCK - out.len() % BLOCK) % BLOCK;
+    out.resize(out.len() + pad, 0);
+    Ok(out)
+}
+
+fn fits_int(file: &C3dFile, scale: f32) -> bool {
+    file.points.iter().all(|w| {
+        w[..3].iter().all(|v| {
+            let q = (v / scale).round();
+            q.is_finite() && q >= i16::MIN as f32 && q <= i16::MAX as f32
+        }) && (w[3] < 0.0 || w[3] <= i16::MAX as f32)
+    })
+}
+
+/// Sets a numeric parameter, keeping its stored type where it exists (`float` forces float
+/// for a new one).
+fn update_number(params: &mut Parameters, group: &str, name: &str, value: f64, float: bool) {
+    match params.get_mut(group, name) {
+        Some(p) => match &mut p.data {
+            ParamData::Int(v) if !v.is_empty() => v[0] = value as i64 as u16 as i16,
+            ParamData::Float(v) if !v.is_empty() => v[0] = value as f32,
+            ParamData::Byte(v) if !v.is_empty() && value <= 255.0 => v[0] = value as u8,
+            _ => {
+                p.dims = vec![];
+                p.data = if float {
+                    ParamData::Float(vec![value as f32])
+                } else {
+                    ParamData::Int(vec![value as i64 as u16 as i16])
+                };
+            }
+        },
+        None => {
+            let data = if float {
+                ParamData::Float(vec![value as f32])
+            } else {
+                ParamData::Int(vec![value as i64 as u16 as i16])
+            };
+            params.set(group, name, vec![], data);
+        }
+    }
+}
+
+fn encode_header(
+    file: &C3dFile,
+    storage: Storage,
+    scale: f32,
+    data_block: usize,
+    first: u32,
+    last: u64,
+) -> Vec<u8> {
+    let mut h = file.header.raw.clone();
+    h.resize(BLOCK, 0);
+    if file.processor != super::Processor::Intel {
+        // The uninterpreted bytes of a non-Intel header may hold non-Intel numbers; blank
+        // the reserved words rather than carry numbers readers would misread.
+        for b in &mut h[24..BLOCK] {
+            *b = 0;
+        }
+    }
+    let mut word = |n: usize, v: u16| h[2 * (n - 1)..2 * n].copy_from_slice(&v.to_le_bytes());
+    word(2, file.point_count as u16);
+    word(3, file.header.analog_per_frame);
+    word(4, first.min(u16::MAX as u32) as u16);
+    word(5, last.min(u16::MAX as u64) as u16);
+    word(6, file.header.max_gap);
+    word(9, data_block as u16);
+    word(10, file.header.analog_per_channel);
+    word(148, 0);
+    word(149, 0);
+    word(150, if file.header.events_key { 12345 } else { 0 });
+    word(151, file.header.events.len() as u16);
+    h[0] = 2;
+    h[1] = 0x50;
+    h[12..16].copy_from_slice(&scale.to_le_bytes());
+    h[20..24].copy_from_slice(&file.header.frame_rate_hz.to_le_bytes());
+    for (i, e) in file.header.events.iter().take(18).enumerate() {
+        let at = 2 * (153 + 2 * i - 1);
+        h[at..at + 4].copy_from_slice(&e.time_s.to_le_bytes());
+        h[376 + i] = e.display;
+        h[396 + 4 * i..400 + 4 * i].copy_from_slice(&e.label);
+    }
+    let _ = storage;
+    h
+}
+
+fn encode_parameters(params: &Parameters, blocks_hint: usize) -> Result<Vec<u8>> {
+    let mut records: Vec<Vec<u8>> = Vec::new();
+    for r in &params.records {
+        let mut rec = Vec::new();
+        match r {
+            Record::Group(g) => {
+                let name = checked_name(&g.name)?;
+                rec.push(signed_len(name.len(), g.locked));
+                rec.push((-(g.id as i16)) as i8 as u8);
+                rec.extend(name);
+                rec.extend([0, 0]);
+                push_description(&mut rec, &g.description);
+            }
+            Record::Parameter(p) => {
+                let name = checked_name(&p.name)?;
+                rec.push(signed_len(name.len(), p.locked));
+                rec.push(p.group_id);
+                rec.extend(name);
+                rec.extend([0, 0]);
+                encode_parameter_payload(p, &mut rec)?;
+            }
+        }
+        records.push(rec);
+    }
+    let mut out = vec![0u8; 4];
+    let n = records.len();
+    for (i, mut rec) in records.into_iter().enumerate() {
+        let name_len = (rec[0] as i8).unsigned_abs() as usize;
+        let offset_at = 2 + name_len;
+        let next = if i + 1 == n { 0 } else { rec.len() - offset_at };
+        if next > i16::MAX as usize {
+            return Err(Error::Unwritable(
+                "a parameter record is larger than 32 KiB".into(),
+            ));
+        }
+        rec[offset_at..offset_at + 2].copy_from_slice(&(next as i16).to_le_bytes());
+        out.extend(rec);
+    }
+    // A zero byte after the last record terminates the section for readers that do not stop
+    // at offset 0.
+    out.push(0);
+    let blocks = out.len().div_ceil(BLOCK).max(blocks_hint).max(1);
+    if blocks > 255 {
+        return Err(Error::Unwritable(
+            "parameter section larger than 255 blocks".into(),
+        ));
+    }
+    out.resize(blocks * BLOCK, 0);
+    out[0] = 1;
+    out[1] = 0x50;
+    out[2] = blocks as u8;
+    out[3] = super::Processor::Intel.to_byte();
+    Ok(out)
+}
+
+fn encode_parameter_payload(p: &Parameter, rec: &mut Vec<u8>) -> Result<()> {
+    let count: usize = p.dims.iter().map(|d| *d as usize).product();
+    let values = match &p.data {
+        ParamData::Char(v) | ParamData::Byte(v) => v.len(),
+        ParamData::Int(v) => v.len(),
+        ParamData::Float(v) => v.len(),
+    };
+    if count != values || p.dims.len() > 255 {
+        return Err(Error::Unwritable(format!(
+            "parameter {}: dimensions {:?} do not match {values} values",
+            p.name, p.dims
+        )));
+    }
+    rec.push(p.data.type_code() as u8);
+    rec.push(p.dims.len() as u8);
+    rec.extend(&p.dims);
+    match &p.data {
+        ParamData::Char(v) | ParamData::Byte(v) => rec.extend(v),
+        ParamData::Int(v) => v.iter().for_each(|x| rec.extend(x.to_le_bytes())),
+        ParamData::Float(v) => v.iter().for_each(|x| rec.extend(x.to_le_bytes())),
+    }
+    push_description(rec, &p.description);
+    Ok(())
+}
+
+fn push_description(rec: &mut Vec<u8>, desc: &[u8]) {
+    let d = &desc[..desc.len().min(255)];
+    rec.push(d.len() as u8);
+    rec.extend(d);
+}
+
+fn checked_name(name: &str) -> Result<&[u8]> {
+    let b = name.as_bytes();
+    if b.is_empty() || b.len() > 127 {
+        return Err(Error::Unwritable(format!(
+            "parameter or group name {name:?} must be 1-127 bytes"
+        )));
+    }
+    Ok(b)
+}
+
+fn signed_len(len: usize, locked: bool) -> u8 {
+    let l = len as i8;
+    (if locked { -l } else { l }) as u8
+}
+
+fn encode_data(file: &C3dFile, storage: Storage, scale: f32, out: &mut Vec<u8>) -> Result<()> {
+    let m = file.point_count;
+    let a = file.header.analog_per_frame as usize;
+    for f in 0..file.frames {
+        for w in &file.points[f * m..(f + 1) * m] {
+            match storage {
+                Storage::Int => {
+                    for v in &w[..3] {
+                        out.extend(((v / scale).round() as i16).to_le_bytes());
+                    }
+                    let r = if w[3] < 0.0 {
+                        -1
+                    } else {
+                        w[3] as i32 as u16 as i16
+                    };
+                    out.extend(r.to_le_bytes());
+                }
+                Storage::Float => w.iter().for_each(|v| out.extend(v.to_le_bytes())),
+            }
+        }
+        match (&file.analog, storage) {
+            (AnalogSamples::Int(v), Storage::Int) => v[f * a..(f + 1) * a]
+                .iter()
+                .for_each(|x| out.extend(x.to_le_bytes())),
+            (AnalogSamples::Int(v), Storage::Float) => {
+                let unsigned = analog_unsigned(&file.parameters);
+                v[f * a..(f + 1) * a].iter().for_each(|x| {
+                    let value = if unsigned {
+                        *x as u16 as f32
+                    } else {
+                        *x as f32
+                    };
+                    out.extend(value.to_le_bytes())
+                })
+            }
+            (AnalogSamples::Float(v), Storage::Float) => v[f * a..(f + 1) * a]
+                .iter()
+                .for_each(|x| out.extend(x.to_le_bytes())),
+            (AnalogSamples::Float(v), Storage::Int) => {
+                for x in &v[f * a..(f + 1) * a] {
+                    if x.fract() != 0.0 || *x < i16::MIN as f32 || *x > i16::MAX as f32 {
+                        return Err(Error::Unwritable(
+                            "float analog samples cannot be stored as integers".into(),
+                        ));
+                    }
+                    out.extend((*x as i16).to_le_bytes());
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
+fn analog_unsigned(params: &Parameters) -> bool {
+    params
+        .get("ANALOG", "FORMAT")
+        .and_then(|p| p.strings().into_iter().next())
+        .is_some_and(|s| s.eq_ignore_ascii_case("UNSIGNED"))
+}
