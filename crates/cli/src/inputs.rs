@@ -8,8 +8,7 @@ use std::path::{Path, PathBuf};
 pub fn expand(paths: &[PathBuf], extensions: &[&str]) -> Result<Vec<PathBuf>> {
     let mut out = Vec::new();
     for path in paths {
-        let meta =
-            std::fs::metadata(path).with_context(|| format!("{}: cannot open", path.display()))?;
+        let meta = std::fs::metadata(path).with_context(|| format!("{}: cannot open", path.display()))?;
         if meta.is_dir() {
             let before = out.len();
             walk(path, extensions, &mut out)?;
@@ -19,18 +18,13 @@ pub fn expand(paths: &[PathBuf], extensions: &[&str]) -> Result<Vec<PathBuf>> {
         }
     }
     if out.is_empty() {
-        bail!(
-            "no input files found (looked for {} files)",
-            extensions.join(", ")
-        );
+        bail!("no input files found (looked for {} files)", extensions.join(", "));
     }
     Ok(out)
 }
 
 fn walk(dir: &Path, extensions: &[&str], out: &mut Vec<PathBuf>) -> Result<()> {
-    for entry in
-        std::fs::read_dir(dir).with_context(|| format!("{}: cannot list folder", dir.display()))?
-    {
+    for entry in std::fs::read_dir(dir).with_context(|| format!("{}: cannot list folder", dir.display()))? {
         let path = entry?.path();
         if path.is_dir() {
             walk(&path, extensions, out)?;
@@ -43,7 +37,5 @@ fn walk(dir: &Path, extensions: &[&str], out: &mut Vec<PathBuf>) -> Result<()> {
 
 /// True if `path`'s extension is one of `extensions` (case-insensitive).
 pub fn has_extension(path: &Path, extensions: &[&str]) -> bool {
-    path.extension()
-        .and_then(|e| e.to_str())
-        .is_some_and(|e| extensions.iter().any(|x| x.eq_ignore_ascii_case(e)))
+    path.extension().and_then(|e| e.to_str()).is_some_and(|e| extensions.iter().any(|x| x.eq_ignore_ascii_case(e)))
 }

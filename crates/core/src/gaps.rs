@@ -42,10 +42,7 @@ pub fn gaps_of(valid: impl IntoIterator<Item = bool>) -> Vec<Gap> {
         match (v, open) {
             (false, None) => open = Some(frame),
             (true, Some(start)) => {
-                gaps.push(Gap {
-                    start,
-                    len: frame - start,
-                });
+                gaps.push(Gap { start, len: frame - start });
                 open = None;
             }
             _ => {}
@@ -53,10 +50,7 @@ pub fn gaps_of(valid: impl IntoIterator<Item = bool>) -> Vec<Gap> {
         frame += 1;
     }
     if let Some(start) = open {
-        gaps.push(Gap {
-            start,
-            len: frame - start,
-        });
+        gaps.push(Gap { start, len: frame - start });
     }
     gaps
 }
@@ -81,11 +75,7 @@ pub struct MarkerGapStatistics {
 impl MarkerGapStatistics {
     /// Fraction of missing frames, in `[0, 1]` (0 for an empty take).
     pub fn missing_fraction(&self) -> f64 {
-        if self.total_frames == 0 {
-            0.0
-        } else {
-            self.missing_frames as f64 / self.total_frames as f64
-        }
+        if self.total_frames == 0 { 0.0 } else { self.missing_frames as f64 / self.total_frames as f64 }
     }
 }
 
@@ -140,11 +130,7 @@ impl GapStatistics {
     pub fn missing_fraction(&self) -> f64 {
         let total: usize = self.markers.iter().map(|m| m.total_frames).sum();
         let missing: usize = self.markers.iter().map(|m| m.missing_frames).sum();
-        if total == 0 {
-            0.0
-        } else {
-            missing as f64 / total as f64
-        }
+        if total == 0 { 0.0 } else { missing as f64 / total as f64 }
     }
 
     /// Total number of gaps over all markers.
@@ -182,14 +168,7 @@ mod tests {
     #[test]
     fn finds_gaps_including_edges() {
         let v = [false, true, true, false, false, true, false];
-        assert_eq!(
-            gaps_of(v),
-            vec![
-                Gap { start: 0, len: 1 },
-                Gap { start: 3, len: 2 },
-                Gap { start: 6, len: 1 }
-            ]
-        );
+        assert_eq!(gaps_of(v), vec![Gap { start: 0, len: 1 }, Gap { start: 3, len: 2 }, Gap { start: 6, len: 1 }]);
         assert!(Gap { start: 6, len: 1 }.is_at_edge(7));
         assert!(!Gap { start: 3, len: 2 }.is_at_edge(7));
         assert!(gaps_of([true, true]).is_empty());
@@ -200,12 +179,7 @@ mod tests {
         let p = Some(Vec3::zeros());
         // marker 0: gap of 2 at frames 1-2; marker 1: always there.
         let samples = [p, p, None, p, None, p, p, p];
-        let take = Take::from_samples(
-            vec![MarkerName::parse("A"), MarkerName::parse("B")],
-            &samples,
-            120.0,
-        )
-        .unwrap();
+        let take = Take::from_samples(vec![MarkerName::parse("A"), MarkerName::parse("B")], &samples, 120.0).unwrap();
         let stats = GapStatistics::of_take(&take);
         assert_eq!(stats.markers[0].missing_frames, 2);
         assert_eq!(stats.markers[0].gap_count, 1);

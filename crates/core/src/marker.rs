@@ -21,14 +21,10 @@ impl MarkerName {
     pub fn parse(full: &str) -> MarkerName {
         let full = full.trim();
         match full.split_once(':') {
-            Some((subject, label)) if !subject.is_empty() && !label.is_empty() => MarkerName {
-                subject: Some(subject.to_string()),
-                label: label.to_string(),
-            },
-            _ => MarkerName {
-                subject: None,
-                label: full.to_string(),
-            },
+            Some((subject, label)) if !subject.is_empty() && !label.is_empty() => {
+                MarkerName { subject: Some(subject.to_string()), label: label.to_string() }
+            }
+            _ => MarkerName { subject: None, label: full.to_string() },
         }
     }
 

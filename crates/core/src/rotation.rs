@@ -42,16 +42,9 @@ impl EulerOrder {
 
     /// The order whose product uses these axes; `None` if an axis repeats.
     pub fn from_axes(axes: [usize; 3]) -> Option<EulerOrder> {
-        [
-            EulerOrder::XYZ,
-            EulerOrder::XZY,
-            EulerOrder::YXZ,
-            EulerOrder::YZX,
-            EulerOrder::ZXY,
-            EulerOrder::ZYX,
-        ]
-        .into_iter()
-        .find(|o| o.axes() == axes)
+        [EulerOrder::XYZ, EulerOrder::XZY, EulerOrder::YXZ, EulerOrder::YZX, EulerOrder::ZXY, EulerOrder::ZYX]
+            .into_iter()
+            .find(|o| o.axes() == axes)
     }
 
     /// Parses `"XYZ"`, `"zxy"`, ... .
@@ -133,14 +126,8 @@ mod tests {
     use approx::assert_relative_eq;
     use proptest::prelude::*;
 
-    const ORDERS: [EulerOrder; 6] = [
-        EulerOrder::XYZ,
-        EulerOrder::XZY,
-        EulerOrder::YXZ,
-        EulerOrder::YZX,
-        EulerOrder::ZXY,
-        EulerOrder::ZYX,
-    ];
+    const ORDERS: [EulerOrder; 6] =
+        [EulerOrder::XYZ, EulerOrder::XZY, EulerOrder::YXZ, EulerOrder::YZX, EulerOrder::ZXY, EulerOrder::ZYX];
 
     #[test]
     fn hand_computed_rotations() {

@@ -85,21 +85,13 @@ impl Skeleton {
             match joint.parent {
                 None if i != 0 => return Err(SkeletonError::SecondRoot(i, joint.name.clone())),
                 Some(p) if p >= i => {
-                    return Err(SkeletonError::BadParent {
-                        joint: i,
-                        name: joint.name.clone(),
-                        parent: p,
-                    });
+                    return Err(SkeletonError::BadParent { joint: i, name: joint.name.clone(), parent: p });
                 }
                 _ => {}
             }
         }
         if joints[0].parent.is_some() {
-            return Err(SkeletonError::BadParent {
-                joint: 0,
-                name: joints[0].name.clone(),
-                parent: 0,
-            });
+            return Err(SkeletonError::BadParent { joint: 0, name: joints[0].name.clone(), parent: 0 });
         }
         Ok(Skeleton { joints })
     }
@@ -126,11 +118,7 @@ impl Skeleton {
 
     /// Indices of the children of `joint`.
     pub fn children(&self, joint: usize) -> impl Iterator<Item = usize> + '_ {
-        self.joints
-            .iter()
-            .enumerate()
-            .filter(move |(_, j)| j.parent == Some(joint))
-            .map(|(i, _)| i)
+        self.joints.iter().enumerate().filter(move |(_, j)| j.parent == Some(joint)).map(|(i, _)| i)
     }
 
     /// Scales every offset by `factor` (for unit changes or subject size).
@@ -177,18 +165,9 @@ impl Motion {
         }
         let (frames, joints) = (root_position_mm.len(), skeleton.len());
         if rotations.len() != frames * joints {
-            return Err(SkeletonError::ShapeMismatch {
-                frames,
-                joints,
-                found: rotations.len(),
-            });
+            return Err(SkeletonError::ShapeMismatch { frames, joints, found: rotations.len() });
         }
-        Ok(Motion {
-            skeleton,
-            rotations,
-            root_position_mm,
-            frame_rate_hz,
-        })
+        Ok(Motion { skeleton, rotations, root_position_mm, frame_rate_hz })
     }
 
     /// Number of frames.
@@ -214,11 +193,7 @@ impl Motion {
 
     /// Global joint positions and rotations at `frame`.
     pub fn forward_kinematics(&self, frame: usize) -> GlobalPose {
-        forward_kinematics(
-            &self.skeleton,
-            self.local_rotations(frame),
-            self.root_position_mm[frame],
-        )
+        forward_kinematics(&self.skeleton, self.local_rotations(frame), self.root_position_mm[frame])
     }
 }
 
@@ -227,11 +202,7 @@ impl Motion {
 ///
 /// # Panics
 /// If `local` does not have one rotation per joint.
-pub fn forward_kinematics(
-    skeleton: &Skeleton,
-    local: &[Quat],
-    root_position_mm: Vec3,
-) -> GlobalPose {
+pub fn forward_kinematics(skeleton: &Skeleton, local: &[Quat], root_position_mm: Vec3) -> GlobalPose {
     assert_eq!(local.len(), skeleton.len(), "one local rotation per joint");
     let mut positions_mm = Vec::with_capacity(local.len());
     let mut rotations: Vec<Quat> = Vec::with_capacity(local.len());
@@ -247,10 +218,7 @@ pub fn forward_kinematics(
             }
         }
     }
-    GlobalPose {
-        positions_mm,
-        rotations,
-    }
+    GlobalPose { positions_mm, rotations }
 }
 
 #[cfg(test)]
@@ -283,10 +251,7 @@ mod tests {
     fn rejects_malformed_hierarchies() {
         assert_eq!(Skeleton::new(vec![]), Err(SkeletonError::Empty));
         assert!(matches!(
-            Skeleton::new(vec![
-                joint("a", None, [0.0; 3]),
-                joint("b", Some(1), [0.0; 3])
-            ]),
+            Skeleton::new(vec![joint("a", None, [0.0; 3]), joint("b", Some(1), [0.0; 3])]),
             Err(SkeletonError::BadParent { .. })
         ));
         assert!(matches!(
@@ -294,10 +259,7 @@ mod tests {
             Err(SkeletonError::SecondRoot(1, _))
         ));
         assert!(matches!(
-            Skeleton::new(vec![
-                joint("a", None, [0.0; 3]),
-                joint("a", Some(0), [0.0; 3])
-            ]),
+            Skeleton::new(vec![joint("a", None, [0.0; 3]), joint("a", Some(0), [0.0; 3])]),
             Err(SkeletonError::DuplicateName(_))
         ));
     }
@@ -308,45 +270,21 @@ mod tests {
         let root = Vec3::new(10.0, 20.0, 30.0);
         // Rest pose: offsets add up along X.
         let pose = forward_kinematics(&sk, &[Quat::identity(); 4], root);
-        assert_relative_eq!(
-            pose.positions_mm[3],
-            Vec3::new(660.0, 20.0, 30.0),
-            epsilon = 1e-9
-        );
+        assert_relative_eq!(pose.positions_mm[3], Vec3::new(660.0, 20.0, 30.0), epsilon = 1e-9);
         // Shoulder bent 90 degrees about Z: the elbow lies along +Y of the shoulder, and the
         // elbow bent another 90 degrees points the hand along -X.
         let z90 = EulerOrder::ZXY.to_quat_deg([90.0, 0.0, 0.0]);
         let pose = forward_kinematics(&sk, &[Quat::identity(), z90, z90, Quat::identity()], root);
-        assert_relative_eq!(
-            pose.positions_mm[1],
-            Vec3::new(110.0, 20.0, 30.0),
-            epsilon = 1e-9
-        );
-        assert_relative_eq!(
-            pose.positions_mm[2],
-            Vec3::new(110.0, 320.0, 30.0),
-            epsilon = 1e-9
-        );
-        assert_relative_eq!(
-            pose.positions_mm[3],
-            Vec3::new(-140.0, 320.0, 30.0),
-            epsilon = 1e-9
-        );
+        assert_relative_eq!(pose.positions_mm[1], Vec3::new(110.0, 20.0, 30.0), epsilon = 1e-9);
+        assert_relative_eq!(pose.positions_mm[2], Vec3::new(110.0, 320.0, 30.0), epsilon = 1e-9);
+        assert_relative_eq!(pose.positions_mm[3], Vec3::new(-140.0, 320.0, 30.0), epsilon = 1e-9);
         assert!(pose.rotations[3].angle_to(&(z90 * z90)) < 1e-12);
     }
 
     #[test]
     fn motion_shape_is_checked() {
         let sk = arm();
-        assert!(
-            Motion::new(
-                sk.clone(),
-                vec![Quat::identity(); 7],
-                vec![Vec3::zeros(); 2],
-                120.0
-            )
-            .is_err()
-        );
+        assert!(Motion::new(sk.clone(), vec![Quat::identity(); 7], vec![Vec3::zeros(); 2], 120.0).is_err());
         let m = Motion::new(sk, vec![Quat::identity(); 8], vec![Vec3::zeros(); 2], 120.0).unwrap();
         assert_eq!(m.frame_count(), 2);
         assert_eq!(m.forward_kinematics(1).positions_mm.len(), 4);

@@ -7,9 +7,7 @@ use serde::{Deserialize, Serialize};
 #[derive(Debug, thiserror::Error, PartialEq)]
 pub enum TakeError {
     /// The arrays given do not have `frames x markers` elements.
-    #[error(
-        "take has {frames} frames x {markers} markers = {expected} samples, but {what} has {found}"
-    )]
+    #[error("take has {frames} frames x {markers} markers = {expected} samples, but {what} has {found}")]
     ShapeMismatch {
         /// Number of frames.
         frames: usize,
@@ -69,11 +67,7 @@ pub struct Take {
 
 impl Take {
     /// A take with `frames` frames in which every sample is missing.
-    pub fn empty(
-        markers: Vec<MarkerName>,
-        frames: usize,
-        frame_rate_hz: f64,
-    ) -> Result<Take, TakeError> {
+    pub fn empty(markers: Vec<MarkerName>, frames: usize, frame_rate_hz: f64) -> Result<Take, TakeError> {
         check_rate(frame_rate_hz)?;
         let n = frames * markers.len();
         Ok(Take {
@@ -117,10 +111,7 @@ impl Take {
 
     /// Number of frames `T`.
     pub fn frame_count(&self) -> usize {
-        self.valid
-            .len()
-            .checked_div(self.markers.len())
-            .unwrap_or(0)
+        self.valid.len().checked_div(self.markers.len()).unwrap_or(0)
     }
 
     /// Number of markers `M`.
@@ -186,12 +177,7 @@ impl Take {
 
     /// Sets (or, with `None`, removes) a sample. A non-finite position is rejected. The
     /// sample's quality is reset to "computed" (`residual 0`, no cameras).
-    pub fn set_position_mm(
-        &mut self,
-        frame: usize,
-        marker: usize,
-        position: Option<Vec3>,
-    ) -> Result<(), TakeError> {
+    pub fn set_position_mm(&mut self, frame: usize, marker: usize, position: Option<Vec3>) -> Result<(), TakeError> {
         let i = self.index(frame, marker);
         match position {
             Some(p) if !(p.x.is_finite() && p.y.is_finite() && p.z.is_finite()) => {
@@ -223,16 +209,12 @@ impl Take {
 
     /// The trajectory of one marker: one `Option` per frame.
     pub fn trajectory_mm(&self, marker: usize) -> Vec<Option<Vec3>> {
-        (0..self.frame_count())
-            .map(|f| self.position_mm(f, marker))
-            .collect()
+        (0..self.frame_count()).map(|f| self.position_mm(f, marker)).collect()
     }
 
     /// All samples of one frame, `None` where missing.
     pub fn frame_mm(&self, frame: usize) -> Vec<Option<Vec3>> {
-        (0..self.marker_count())
-            .map(|m| self.position_mm(frame, m))
-            .collect()
+        (0..self.marker_count()).map(|m| self.position_mm(frame, m)).collect()
     }
 
     /// Validity of every sample, frame-major.
@@ -264,20 +246,13 @@ impl Take {
 
     fn index(&self, frame: usize, marker: usize) -> usize {
         let m = self.markers.len();
-        assert!(
-            marker < m && frame < self.frame_count(),
-            "sample ({frame}, {marker}) outside take"
-        );
+        assert!(marker < m && frame < self.frame_count(), "sample ({frame}, {marker}) outside take");
         frame * m + marker
     }
 }
 
 fn check_rate(hz: f64) -> Result<(), TakeError> {
-    if hz.is_finite() && hz > 0.0 {
-        Ok(())
-    } else {
-        Err(TakeError::BadFrameRate(hz))
-    }
+    if hz.is_finite() && hz > 0.0 { Ok(()) } else { Err(TakeError::BadFrameRate(hz)) }
 }
 
 #[cfg(test)]
@@ -285,28 +260,18 @@ mod tests {
     use super::*;
 
     fn names(n: usize) -> Vec<MarkerName> {
-        (0..n)
-            .map(|i| MarkerName::parse(&format!("M{i}")))
-            .collect()
+        (0..n).map(|i| MarkerName::parse(&format!("M{i}"))).collect()
     }
 
     #[test]
     fn missing_samples_are_none() {
-        let samples = vec![
-            Some(Vec3::new(1.0, 2.0, 3.0)),
-            None,
-            None,
-            Some(Vec3::new(4.0, 5.0, 6.0)),
-        ];
+        let samples = vec![Some(Vec3::new(1.0, 2.0, 3.0)), None, None, Some(Vec3::new(4.0, 5.0, 6.0))];
         let take = Take::from_samples(names(2), &samples, 120.0).unwrap();
         assert_eq!(take.frame_count(), 2);
         assert_eq!(take.position_mm(0, 1), None);
         assert_eq!(take.position_mm(1, 1), Some(Vec3::new(4.0, 5.0, 6.0)));
         assert_eq!(take.missing_count(), 2);
-        assert_eq!(
-            take.trajectory_mm(0),
-            vec![Some(Vec3::new(1.0, 2.0, 3.0)), None]
-        );
+        assert_eq!(take.trajectory_mm(0), vec![Some(Vec3::new(1.0, 2.0, 3.0)), None]);
     }
 
     #[test]
@@ -315,15 +280,9 @@ mod tests {
             Take::from_samples(names(2), &[None, None, None], 120.0),
             Err(TakeError::ShapeMismatch { .. })
         ));
-        assert_eq!(
-            Take::empty(names(1), 1, 0.0),
-            Err(TakeError::BadFrameRate(0.0))
-        );
+        assert_eq!(Take::empty(names(1), 1, 0.0), Err(TakeError::BadFrameRate(0.0)));
         let mut take = Take::empty(names(1), 1, 60.0).unwrap();
-        assert!(
-            take.set_position_mm(0, 0, Some(Vec3::new(f64::NAN, 0.0, 0.0)))
-                .is_err()
-        );
+        assert!(take.set_position_mm(0, 0, Some(Vec3::new(f64::NAN, 0.0, 0.0))).is_err());
         assert!(!take.is_valid(0, 0));
     }
 

@@ -34,12 +34,8 @@ impl LengthUnit {
     /// surrounding blanks ignored). Returns `None` for anything else.
     pub fn parse(text: &str) -> Option<LengthUnit> {
         match text.trim().to_ascii_lowercase().as_str() {
-            "mm" | "millimeter" | "millimeters" | "millimetre" | "millimetres" => {
-                Some(LengthUnit::Millimetre)
-            }
-            "cm" | "centimeter" | "centimeters" | "centimetre" | "centimetres" => {
-                Some(LengthUnit::Centimetre)
-            }
+            "mm" | "millimeter" | "millimeters" | "millimetre" | "millimetres" => Some(LengthUnit::Millimetre),
+            "cm" | "centimeter" | "centimeters" | "centimetre" | "centimetres" => Some(LengthUnit::Centimetre),
             "m" | "meter" | "meters" | "metre" | "metres" => Some(LengthUnit::Metre),
             "in" | "inch" | "inches" => Some(LengthUnit::Inch),
             _ => None,

@@ -6,10 +6,7 @@ fn main() {
     };
     match locap_io::c3d::read_path(std::path::Path::new(&path)) {
         Ok(f) => {
-            println!(
-                "{:?} frames={} points={} storage={:?}",
-                f.processor, f.frames, f.point_count, f.storage
-            );
+            println!("{:?} frames={} points={} storage={:?}", f.processor, f.frames, f.point_count, f.storage);
             println!("{:#?}", f.header.events);
             for r in &f.parameters.records {
                 match r {

@@ -11,10 +11,7 @@ use std::path::Path;
 
 /// Writes a file atomically: `write` fills a buffered temporary file, which replaces `path`
 /// only if `write` and the flush succeed.
-pub fn write_atomically(
-    path: &Path,
-    write: impl FnOnce(&mut dyn Write) -> Result<()>,
-) -> Result<()> {
+pub fn write_atomically(path: &Path, write: impl FnOnce(&mut dyn Write) -> Result<()>) -> Result<()> {
     let dir = match path.parent() {
         Some(d) if !d.as_os_str().is_empty() => d,
         _ => Path::new("."),
@@ -29,11 +26,8 @@ pub fn write_atomically(
         write(&mut out).map_err(|e| e.in_file(path))?;
         out.flush().map_err(|e| Error::from(e).in_file(path))?;
     }
-    tmp.as_file()
-        .sync_all()
-        .map_err(|e| Error::from(e).in_file(path))?;
-    tmp.persist(path)
-        .map_err(|e| Error::from(e.error).in_file(path))?;
+    tmp.as_file().sync_all().map_err(|e| Error::from(e).in_file(path))?;
+    tmp.persist(path).map_err(|e| Error::from(e.error).in_file(path))?;
     Ok(())
 }
 

@@ -66,20 +66,12 @@ impl Error {
     pub fn in_file(self, path: &Path) -> Error {
         match self {
             e @ Error::InFile { .. } => e,
-            e => Error::InFile {
-                path: path.to_path_buf(),
-                error: Box::new(e),
-            },
+            e => Error::InFile { path: path.to_path_buf(), error: Box::new(e) },
         }
     }
 
     /// A text-format error at `line` (1-based).
     pub fn text(format: &'static str, line: usize, message: impl Into<String>) -> Error {
-        Error::Text {
-            format,
-            line,
-            column: None,
-            message: message.into(),
-        }
+        Error::Text { format, line, column: None, message: message.into() }
     }
 }

@@ -51,8 +51,7 @@ pub struct TakeInfo {
 /// Runs `locap info`.
 pub fn run(args: Args) -> Result<ExitCode> {
     let files = inputs::expand(&args.files, &["c3d", "trc"])?;
-    let results: Vec<(PathBuf, Result<TakeInfo>)> =
-        files.par_iter().map(|p| (p.clone(), describe(p))).collect();
+    let results: Vec<(PathBuf, Result<TakeInfo>)> = files.par_iter().map(|p| (p.clone(), describe(p))).collect();
     let mut failed = 0;
     let mut infos = Vec::new();
     for (path, result) in results {
@@ -76,11 +75,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
         infos.iter().map(format_text).collect()
     };
     crate::emit(&text)?;
-    Ok(if failed > 0 {
-        ExitCode::from(1)
-    } else {
-        ExitCode::SUCCESS
-    })
+    Ok(if failed > 0 { ExitCode::from(1) } else { ExitCode::SUCCESS })
 }
 
 /// Reads one take and gathers its description.
@@ -150,12 +145,7 @@ fn format_text(info: &TakeInfo) -> String {
         s,
         "  {} {}, {} markers x {} frames at {} Hz ({:.2} s, first frame {}), units {}, {}-up",
         info.format,
-        [info.processor, info.storage]
-            .iter()
-            .flatten()
-            .copied()
-            .collect::<Vec<_>>()
-            .join(" "),
+        [info.processor, info.storage].iter().flatten().copied().collect::<Vec<_>>().join(" "),
         info.markers,
         info.frames,
         info.frame_rate_hz,
@@ -168,12 +158,7 @@ fn format_text(info: &TakeInfo) -> String {
         let _ = writeln!(s, "  vendor: {v}");
     }
     if info.analog_channels > 0 {
-        let _ = writeln!(
-            s,
-            "  analog: {} channels at {} Hz",
-            info.analog_channels,
-            info.analog_rate_hz.unwrap_or(0.0)
-        );
+        let _ = writeln!(s, "  analog: {} channels at {} Hz", info.analog_channels, info.analog_rate_hz.unwrap_or(0.0));
     }
     if info.events > 0 {
         let _ = writeln!(s, "  events: {}", info.events);
@@ -182,25 +167,10 @@ fn format_text(info: &TakeInfo) -> String {
         let _ = writeln!(s, "  warning: {w}");
     }
     let g = &info.gaps;
-    let _ = writeln!(
-        s,
-        "  missing: {:.2}% of samples in {} gaps",
-        100.0 * g.missing_fraction(),
-        g.gap_count()
-    );
+    let _ = writeln!(s, "  missing: {:.2}% of samples in {} gaps", 100.0 * g.missing_fraction(), g.gap_count());
     if !g.markers.is_empty() {
-        let width = g
-            .markers
-            .iter()
-            .map(|m| m.name.len())
-            .max()
-            .unwrap_or(6)
-            .max(6);
-        let _ = writeln!(
-            s,
-            "  {:<width$}  {:>8}  {:>5}  {:>12}",
-            "marker", "missing", "gaps", "longest gap"
-        );
+        let width = g.markers.iter().map(|m| m.name.len()).max().unwrap_or(6).max(6);
+        let _ = writeln!(s, "  {:<width$}  {:>8}  {:>5}  {:>12}", "marker", "missing", "gaps", "longest gap");
         for m in &g.markers {
             let _ = writeln!(
                 s,

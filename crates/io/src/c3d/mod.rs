@@ -191,11 +191,7 @@ impl C3dFile {
             .map(|s| s as f32)
             .filter(|s| s.is_finite() && *s != 0.0)
             .unwrap_or(header_scale);
-        if s.is_finite() && s != 0.0 {
-            s.abs()
-        } else {
-            1.0
-        }
+        if s.is_finite() && s != 0.0 { s.abs() } else { 1.0 }
     }
 
     /// 3D frame rate in Hz (`POINT:RATE`, else the header's).
@@ -209,17 +205,12 @@ impl C3dFile {
 
     /// First frame number (`TRIAL:ACTUAL_START_FIELD` if present, else the header's).
     pub fn first_frame(&self) -> u32 {
-        trial_field(&self.parameters, "ACTUAL_START_FIELD")
-            .unwrap_or(self.header.first_frame as u32)
+        trial_field(&self.parameters, "ACTUAL_START_FIELD").unwrap_or(self.header.first_frame as u32)
     }
 
     /// Which axis is up, from `POINT:Y_SCREEN` (`+Y` means Y-up); Z-up by default.
     pub fn up_axis(&self) -> UpAxis {
-        match self
-            .parameters
-            .get("POINT", "Y_SCREEN")
-            .and_then(|p| p.strings().into_iter().next())
-        {
+        match self.parameters.get("POINT", "Y_SCREEN").and_then(|p| p.strings().into_iter().next()) {
             Some(s) if s.trim().ends_with('Y') => UpAxis::Y,
             _ => UpAxis::Z,
         }
@@ -248,24 +239,13 @@ impl C3dFile {
         labels.resize(channels, String::new());
         let mut units = self.parameters.continued_strings("ANALOG", "UNITS");
         units.resize(channels, String::new());
-        AnalogInfo {
-            labels,
-            units,
-            rate_hz,
-            samples_per_frame,
-        }
+        AnalogInfo { labels, units, rate_hz, samples_per_frame }
     }
 
     /// Vendor / manufacturer, from `MANUFACTURER:COMPANY` and `SOFTWARE`, if recorded.
     pub fn manufacturer(&self) -> Option<String> {
-        let company = self
-            .parameters
-            .get("MANUFACTURER", "COMPANY")
-            .and_then(|p| p.strings().into_iter().next());
-        let software = self
-            .parameters
-            .get("MANUFACTURER", "SOFTWARE")
-            .and_then(|p| p.strings().into_iter().next());
+        let company = self.parameters.get("MANUFACTURER", "COMPANY").and_then(|p| p.strings().into_iter().next());
+        let software = self.parameters.get("MANUFACTURER", "SOFTWARE").and_then(|p| p.strings().into_iter().next());
         match (company, software) {
             (Some(c), Some(s)) if !s.is_empty() => Some(format!("{c} ({s})")),
             (Some(c), _) if !c.is_empty() => Some(c),
@@ -277,19 +257,11 @@ impl C3dFile {
     /// The marker take: positions in millimetres, missing samples explicit (see the module
     /// doc for the rules), residuals and camera masks kept as [`SampleQuality`].
     pub fn to_take(&self) -> Result<Take> {
-        let names: Vec<MarkerName> = self
-            .point_labels()
-            .iter()
-            .map(|l| MarkerName::parse(l))
-            .collect();
+        let names: Vec<MarkerName> = self.point_labels().iter().map(|l| MarkerName::parse(l)).collect();
         let mm = self.point_unit().mm_per_unit();
         let scale = self.point_scale();
         let rate = self.frame_rate_hz();
-        let rate = if rate.is_finite() && rate > 0.0 {
-            rate
-        } else {
-            1.0
-        };
+        let rate = if rate.is_finite() && rate > 0.0 { rate } else { 1.0 };
         let mut take = Take::empty(names, self.frames, rate)?;
         take.first_frame = self.first_frame();
         take.up_axis = self.up_axis();
@@ -333,9 +305,7 @@ impl C3dFile {
                 points.push(match take.position_mm(f, k) {
                     Some(p) => {
                         let q = take.quality(f, k);
-                        let residual = (q.residual_mm as f64 / mm / scale as f64)
-                            .round()
-                            .clamp(0.0, 255.0) as i32;
+                        let residual = (q.residual_mm as f64 / mm / scale as f64).round().clamp(0.0, 255.0) as i32;
                         let word = ((q.cameras as i32) << 8) | residual;
                         let p = p / mm;
                         [p.x as f32, p.y as f32, p.z as f32, word as f32]
@@ -346,15 +316,13 @@ impl C3dFile {
         }
         let labels: Vec<String> = take.markers().iter().map(|n| n.full()).collect();
         if labels != self.point_labels() {
-            self.parameters
-                .set_continued_strings("POINT", "LABELS", &labels);
+            self.parameters.set_continued_strings("POINT", "LABELS", &labels);
         }
         if let Some(desc) = self.parameters.get("POINT", "DESCRIPTIONS") {
             let mut d = desc.strings();
             if d.len() != m {
                 d.resize(m, String::new());
-                self.parameters
-                    .set_continued_strings("POINT", "DESCRIPTIONS", &d);
+                self.parameters.set_continued_strings("POINT", "DESCRIPTIONS", &d);
             }
         }
         self.points = points;
@@ -387,11 +355,7 @@ impl C3dFile {
         parameters.set_strings("POINT", "Y_SCREEN", &[up.to_string()]);
         parameters.set("ANALOG", "USED", vec![], ParamData::Int(vec![0]));
         parameters.set("ANALOG", "RATE", vec![], ParamData::Float(vec![rate]));
-        parameters.set_strings(
-            "MANUFACTURER",
-            "SOFTWARE",
-            &[format!("locap {}", env!("CARGO_PKG_VERSION"))],
-        );
+        parameters.set_strings("MANUFACTURER", "SOFTWARE", &[format!("locap {}", env!("CARGO_PKG_VERSION"))]);
         let mut file = C3dFile {
             processor: Processor::Intel,
             header: Header {
@@ -438,14 +402,9 @@ fn decode_position(w: &[f32; 4]) -> Option<Vec3> {
 fn trial_field(params: &Parameters, name: &str) -> Option<u32> {
     let p = params.get("TRIAL", name)?;
     match &p.data {
-        ParamData::Int(v) if v.len() >= 2 => {
-            Some(v[0] as u16 as u32 | ((v[1] as u16 as u32) << 16))
-        }
+        ParamData::Int(v) if v.len() >= 2 => Some(v[0] as u16 as u32 | ((v[1] as u16 as u32) << 16)),
         ParamData::Int(v) if v.len() == 1 => Some(v[0] as u16 as u32),
-        ParamData::Float(v) => v
-            .first()
-            .filter(|x| x.is_finite() && **x >= 0.0)
-            .map(|x| *x as u32),
+        ParamData::Float(v) => v.first().filter(|x| x.is_finite() && **x >= 0.0).map(|x| *x as u32),
         _ => None,
     }
     .filter(|f| *f > 0)

@@ -81,10 +81,7 @@ impl Parameter {
         match &self.data {
             ParamData::Int(v) => v.first().map(|x| *x as i64),
             ParamData::Byte(v) => v.first().map(|x| *x as i64),
-            ParamData::Float(v) => v
-                .first()
-                .filter(|x| x.is_finite())
-                .map(|x| x.round() as i64),
+            ParamData::Float(v) => v.first().filter(|x| x.is_finite()).map(|x| x.round() as i64),
             ParamData::Char(_) => None,
         }
     }
@@ -121,23 +118,13 @@ impl Parameter {
         };
         bytes
             .chunks(width)
-            .map(|c| {
-                String::from_utf8_lossy(c)
-                    .trim_end_matches([' ', '\0'])
-                    .trim_start()
-                    .to_string()
-            })
+            .map(|c| String::from_utf8_lossy(c).trim_end_matches([' ', '\0']).trim_start().to_string())
             .collect()
     }
 
     /// A text parameter holding `strings`, each padded to the longest (at least 1 char).
     pub fn text_array(group_id: u8, name: &str, strings: &[String]) -> Parameter {
-        let width = strings
-            .iter()
-            .map(|s| s.len())
-            .max()
-            .unwrap_or(0)
-            .clamp(1, 255);
+        let width = strings.iter().map(|s| s.len()).max().unwrap_or(0).clamp(1, 255);
         let mut bytes = Vec::with_capacity(width * strings.len());
         for s in strings {
             let mut b: Vec<u8> = s.bytes().take(width).collect();
@@ -200,9 +187,7 @@ impl Parameters {
     pub fn get(&self, group: &str, name: &str) -> Option<&Parameter> {
         let id = self.group_id(group)?;
         self.records.iter().find_map(|r| match r {
-            Record::Parameter(p) if p.group_id == id && p.name.eq_ignore_ascii_case(name) => {
-                Some(p)
-            }
+            Record::Parameter(p) if p.group_id == id && p.name.eq_ignore_ascii_case(name) => Some(p),
             _ => None,
         })
     }
@@ -211,9 +196,7 @@ impl Parameters {
     pub fn get_mut(&mut self, group: &str, name: &str) -> Option<&mut Parameter> {
         let id = self.group_id(group)?;
         self.records.iter_mut().find_map(|r| match r {
-            Record::Parameter(p) if p.group_id == id && p.name.eq_ignore_ascii_case(name) => {
-                Some(p)
-            }
+            Record::Parameter(p) if p.group_id == id && p.name.eq_ignore_ascii_case(name) => Some(p),
             _ => None,
         })
     }
@@ -230,9 +213,7 @@ impl Parameters {
         let id = match self.group_id(group) {
             Some(id) => id,
             None => {
-                let id = (1..=127u8)
-                    .find(|i| self.groups().all(|g| g.id != *i))
-                    .unwrap_or(127);
+                let id = (1..=127u8).find(|i| self.groups().all(|g| g.id != *i)).unwrap_or(127);
                 self.records.push(Record::Group(Group {
                     id,
                     name: group.to_ascii_uppercase(),
@@ -305,17 +286,9 @@ impl Parameters {
             }
             self.remove(group, &format!("{name}{n}"));
         }
-        let chunks: Vec<&[String]> = if strings.is_empty() {
-            vec![&[][..]]
-        } else {
-            strings.chunks(255).collect()
-        };
+        let chunks: Vec<&[String]> = if strings.is_empty() { vec![&[][..]] } else { strings.chunks(255).collect() };
         for (i, chunk) in chunks.iter().enumerate() {
-            let param_name = if i == 0 {
-                name.to_string()
-            } else {
-                format!("{name}{}", i + 1)
-            };
+            let param_name = if i == 0 { name.to_string() } else { format!("{name}{}", i + 1) };
             self.set_strings(group, &param_name, chunk);
         }
     }

@@ -35,26 +35,14 @@ pub fn read(bytes: &[u8]) -> Result<C3dFile> {
 /// Reads a C3D file held in memory.
 pub fn read_with(bytes: &[u8], options: ReadOptions) -> Result<C3dFile> {
     if bytes.len() < BLOCK {
-        return Err(binary(
-            "header",
-            0,
-            format!("file is {} bytes, a C3D header alone is 512", bytes.len()),
-        ));
+        return Err(binary("header", 0, format!("file is {} bytes, a C3D header alone is 512", bytes.len())));
     }
     if bytes[1] != 0x50 {
-        return Err(binary(
-            "header",
-            1,
-            format!("second byte is 0x{:02x}, a C3D file has 0x50", bytes[1]),
-        ));
+        return Err(binary("header", 1, format!("second byte is 0x{:02x}, a C3D file has 0x50", bytes[1])));
     }
     let param_block = bytes[0] as usize;
     if param_block == 0 {
-        return Err(binary(
-            "header",
-            0,
-            "parameter section block number is 0".to_string(),
-        ));
+        return Err(binary("header", 0, "parameter section block number is 0".to_string()));
     }
     let param_offset = (param_block - 1) * BLOCK;
     if param_offset + 4 > bytes.len() {
@@ -71,10 +59,7 @@ pub fn read_with(bytes: &[u8], options: ReadOptions) -> Result<C3dFile> {
         binary(
             "parameter section",
             (param_offset + 3) as u64,
-            format!(
-                "processor type {} is not 84 (Intel), 85 (DEC) or 86 (MIPS)",
-                bytes[param_offset + 3]
-            ),
+            format!("processor type {} is not 84 (Intel), 85 (DEC) or 86 (MIPS)", bytes[param_offset + 3]),
         )
     })?;
     let header = read_header(bytes, processor);
@@ -92,11 +77,7 @@ pub fn read_with(bytes: &[u8], options: ReadOptions) -> Result<C3dFile> {
     };
     let parameters = read_parameters(bytes, param_offset, param_end, processor, &mut warnings)?;
 
-    let storage = if header.scale < 0.0 {
-        Storage::Float
-    } else {
-        Storage::Int
-    };
+    let storage = if header.scale < 0.0 { Storage::Float } else { Storage::Int };
     let word = match storage {
         Storage::Int => 2,
         Storage::Float => 4,
@@ -104,20 +85,25 @@ pub fn read_with(bytes: &[u8], options: ReadOptions) -> Result<C3dFile> {
     let point_count = header.point_count as usize;
     if let Some(used) = parameters.get("POINT", "USED").and_then(|p| p.as_i64()) {
         if used as u16 as usize != point_count {
-            warnings.push(format!("header says {point_count} points, POINT:USED says {used}; the header defines the data layout"));
+            warnings.push(format!(
+                "header says {point_count} points, POINT:USED says {used}; the header defines the data layout"
+            ));
         }
     }
-    let analog_per_frame = header.analog_per_frame as usize;
-    let frame_bytes = (point_count * 4 + analog_per_frame) * word;
-
     let data_block = match header.data_block {
-        0 => parameters
-            .get("POINT", "DATA_START")
-            .and_then(|p| p.as_i64())
-            .unwrap_or(0) as u16 as usize,
+        0 => parameters.get("POINT", "DATA_START").and_then(|p| p.as_i64()).unwrap_or(0) as u16 as usize,
         b => b as usize,
     };
     let data_offset = data_block.saturating_sub(1) * BLOCK;
+    let mut header = header;
+    let data_len = bytes.len().saturating_sub(data_offset);
+    let analog_per_frame = analog_samples_per_frame(&header, &parameters, point_count, word, data_len, &mut warnings);
+    if analog_per_frame != header.analog_per_frame as usize {
+        header.analog_per_frame = analog_per_frame as u16;
+        let channels = parameters.get("ANALOG", "USED").and_then(|p| p.as_i64()).unwrap_or(0).max(1) as usize;
+        header.analog_per_channel = (analog_per_frame / channels) as u16;
+    }
+    let frame_bytes = (point_count * 4 + analog_per_frame) * word;
     let available = if frame_bytes == 0 {
         usize::MAX
     } else if data_offset > bytes.len() || data_block == 0 {
@@ -128,11 +114,7 @@ pub fn read_with(bytes: &[u8], options: ReadOptions) -> Result<C3dFile> {
     let frames = frame_count(&header, &parameters, available, &mut warnings);
     if frame_bytes > 0 && frames > 0 {
         if data_block == 0 {
-            return Err(binary(
-                "header",
-                16,
-                "data section block number is 0".to_string(),
-            ));
+            return Err(binary("header", 16, "data section block number is 0".to_string()));
         }
         if frames > available {
             let message = format!(
@@ -141,11 +123,7 @@ pub fn read_with(bytes: &[u8], options: ReadOptions) -> Result<C3dFile> {
                 bytes.len()
             );
             if options.strict || available == 0 {
-                return Err(binary(
-                    "data section",
-                    (data_offset + available * frame_bytes) as u64,
-                    message,
-                ));
+                return Err(binary("data section", (data_offset + available * frame_bytes) as u64, message));
             }
             warnings.push(format!("{message}; read those {available}"));
         }
@@ -165,15 +143,9 @@ pub fn read_with(bytes: &[u8], options: ReadOptions) -> Result<C3dFile> {
         for _ in 0..point_count {
             points.push(match storage {
                 Storage::Int => {
-                    let v: [i16; 4] = std::array::from_fn(|k| {
-                        processor.i16([bytes[at + 2 * k], bytes[at + 2 * k + 1]])
-                    });
-                    [
-                        v[0] as f32 * scale,
-                        v[1] as f32 * scale,
-                        v[2] as f32 * scale,
-                        v[3] as f32,
-                    ]
+                    let v: [i16; 4] =
+                        std::array::from_fn(|k| processor.i16([bytes[at + 2 * k], bytes[at + 2 * k + 1]]));
+                    [v[0] as f32 * scale, v[1] as f32 * scale, v[2] as f32 * scale, v[3] as f32]
                 }
                 Storage::Float => std::array::from_fn(|k| {
                     let b = at + 4 * k;
@@ -185,12 +157,9 @@ pub fn read_with(bytes: &[u8], options: ReadOptions) -> Result<C3dFile> {
         for _ in 0..analog_per_frame {
             match storage {
                 Storage::Int => analog_int.push(processor.i16([bytes[at], bytes[at + 1]])),
-                Storage::Float => analog_float.push(processor.f32([
-                    bytes[at],
-                    bytes[at + 1],
-                    bytes[at + 2],
-                    bytes[at + 3],
-                ])),
+                Storage::Float => {
+                    analog_float.push(processor.f32([bytes[at], bytes[at + 1], bytes[at + 2], bytes[at + 3]]))
+                }
             }
             at += word;
         }
@@ -199,46 +168,67 @@ pub fn read_with(bytes: &[u8], options: ReadOptions) -> Result<C3dFile> {
         Storage::Int => AnalogSamples::Int(analog_int),
         Storage::Float => AnalogSamples::Float(analog_float),
     };
-    Ok(C3dFile {
-        processor,
-        header,
-        parameters,
-        storage,
-        frames,
-        point_count,
-        points,
-        analog,
-        warnings,
-    })
+    Ok(C3dFile { processor, header, parameters, storage, frames, point_count, points, analog, warnings })
+}
+
+/// Decides how many analog samples each 3D frame holds. Header word 3 should be the total
+/// over all channels, but some writers (The MotionMonitor) put the channel count there; the
+/// candidates are checked against the data section's size and the one that fills it (to
+/// within the last block's padding) wins.
+fn analog_samples_per_frame(
+    header: &Header,
+    params: &Parameters,
+    point_count: usize,
+    word: usize,
+    data_len: usize,
+    warnings: &mut Vec<String>,
+) -> usize {
+    let stated = header.analog_per_frame as usize;
+    let channels = params.get("ANALOG", "USED").and_then(|p| p.as_i64()).filter(|c| *c > 0).map(|c| c as usize);
+    let Some(channels) = channels else { return stated };
+    let frames = frame_count(header, params, usize::MAX, &mut Vec::new());
+    let point_rate = params.get("POINT", "RATE").and_then(|p| p.as_f64()).unwrap_or(header.frame_rate_hz as f64);
+    let analog_rate = params.get("ANALOG", "RATE").and_then(|p| p.as_f64()).unwrap_or(0.0);
+    let ratio = if point_rate > 0.0 && analog_rate > 0.0 { (analog_rate / point_rate).round() as usize } else { 0 };
+    let slack = |samples: usize| {
+        let need = frames.checked_mul((point_count * 4 + samples) * word)?;
+        data_len.checked_sub(need)
+    };
+    if frames == 0 || slack(stated).is_some_and(|r| r < BLOCK) {
+        return stated;
+    }
+    let better = [channels * header.analog_per_channel as usize, channels * ratio.min(1 << 16)]
+        .into_iter()
+        .filter(|c| *c != stated && *c > 0 && *c <= u16::MAX as usize)
+        .filter_map(|c| slack(c).filter(|r| *r < BLOCK).map(|r| (r, c)))
+        .min();
+    match better {
+        Some((_, c)) => {
+            warnings.push(format!(
+                "header word 3 says {stated} analog samples per frame; the data section holds {c} ({channels} channels)"
+            ));
+            c
+        }
+        None => stated,
+    }
 }
 
 /// Decides the number of 3D frames. The header's 16-bit first/last frame words overflow past
 /// 65535 frames, so `TRIAL:ACTUAL_*_FIELD` (32-bit) and `POINT:FRAMES` (read as unsigned) are
 /// preferred when they are consistent with the file's size.
-fn frame_count(
-    header: &Header,
-    params: &Parameters,
-    available: usize,
-    warnings: &mut Vec<String>,
-) -> usize {
+fn frame_count(header: &Header, params: &Parameters, available: usize, warnings: &mut Vec<String>) -> usize {
     let from_header = if header.last_frame >= header.first_frame && header.last_frame > 0 {
         (header.last_frame - header.first_frame) as usize + 1
     } else {
         0
     };
-    let from_trial = match (
-        trial_field(params, "ACTUAL_START_FIELD"),
-        trial_field(params, "ACTUAL_END_FIELD"),
-    ) {
+    let from_trial = match (trial_field(params, "ACTUAL_START_FIELD"), trial_field(params, "ACTUAL_END_FIELD")) {
         (Some(s), Some(e)) if e >= s => Some((e - s) as usize + 1),
         _ => None,
     };
     let from_point = params.get("POINT", "FRAMES").and_then(|p| match &p.data {
         ParamData::Int(v) => v.first().map(|x| *x as u16 as usize),
-        ParamData::Float(v) => v
-            .first()
-            .filter(|x| x.is_finite() && **x >= 0.0)
-            .map(|x| *x as usize),
+        ParamData::Float(v) => v.first().filter(|x| x.is_finite() && **x >= 0.0).map(|x| *x as usize),
         _ => None,
     });
     for candidate in [from_trial, from_point].into_iter().flatten() {
@@ -248,7 +238,8 @@ fn frame_count(
         let longer = candidate > from_header && candidate <= available;
         let header_impossible = from_header > available && candidate <= available && candidate > 0;
         if longer || header_impossible {
-            warnings.push(format!("header frame range gives {from_header} frames; using {candidate} from the parameters"));
+            warnings
+                .push(format!("header frame range gives {from_header} frames; using {candidate} from the parameters"));
             return candidate;
         }
     }
@@ -271,12 +262,7 @@ fn read_header(b: &[u8], p: Processor) -> Header {
         .map(|i| HeaderEvent {
             time_s: float(153 + 2 * i),
             display: b[376 + i],
-            label: [
-                b[396 + 4 * i],
-                b[397 + 4 * i],
-                b[398 + 4 * i],
-                b[399 + 4 * i],
-            ],
+            label: [b[396 + 4 * i], b[397 + 4 * i], b[398 + 4 * i], b[399 + 4 * i]],
         })
         .collect();
     Header {
@@ -325,51 +311,26 @@ fn read_parameters(
             return Err(binary(
                 section,
                 at as u64,
-                format!(
-                    "record name of {name_len} bytes runs past the parameter section end (byte {end})"
-                ),
+                format!("record name of {name_len} bytes runs past the parameter section end (byte {end})"),
             ));
         }
-        let name = String::from_utf8_lossy(&bytes[name_at..offset_at])
-            .trim_end_matches([' ', '\0'])
-            .to_string();
+        let name = String::from_utf8_lossy(&bytes[name_at..offset_at]).trim_end_matches([' ', '\0']).to_string();
         let next = p.i16([bytes[offset_at], bytes[offset_at + 1]]);
         let payload = offset_at + 2;
         // The last record may point nowhere (offset 0); its payload then ends at the section end.
-        let record_end = if next > 0 {
-            (offset_at + next as usize).min(end)
-        } else {
-            end
-        };
+        let record_end = if next > 0 { (offset_at + next as usize).min(end) } else { end };
         if id == 0 {
-            warnings.push(format!(
-                "record {name:?} at byte {at} has group id 0; skipped"
-            ));
+            warnings.push(format!("record {name:?} at byte {at} has group id 0; skipped"));
         } else if id < 0 {
             let desc = description(bytes, payload, record_end);
-            records.push(Record::Group(Group {
-                id: id.unsigned_abs(),
-                name: name.clone(),
-                locked,
-                description: desc,
-            }));
+            records.push(Record::Group(Group { id: id.unsigned_abs(), name: name.clone(), locked, description: desc }));
         } else {
-            match read_parameter(
-                bytes,
-                payload,
-                record_end,
-                p,
-                id as u8,
-                name.clone(),
-                locked,
-            ) {
+            match read_parameter(bytes, payload, record_end, p, id as u8, name.clone(), locked) {
                 Ok(param) => records.push(Record::Parameter(param)),
                 Err(e) if next <= 0 => {
                     // A broken *last* record (e.g. c3d.org sample 18's empty group with offset
                     // -1) does not make the rest of the file unreadable.
-                    warnings.push(format!(
-                        "last parameter record {name:?} is malformed and was skipped: {e}"
-                    ));
+                    warnings.push(format!("last parameter record {name:?} is malformed and was skipped: {e}"));
                     break;
                 }
                 Err(e) => return Err(e),
@@ -377,7 +338,9 @@ fn read_parameters(
         }
         if next <= 0 {
             if next < 0 {
-                warnings.push(format!("record {name:?} at byte {at} has negative offset {next}; parameter section ends there"));
+                warnings.push(format!(
+                    "record {name:?} at byte {at} has negative offset {next}; parameter section ends there"
+                ));
             }
             break;
         }
@@ -385,38 +348,17 @@ fn read_parameters(
     }
     // Parameters whose group is never declared are kept, but a file this broken is worth a
     // warning (writers then emit a group record for them).
-    let groups: Vec<u8> = records
-        .iter()
-        .filter_map(|r| {
-            if let Record::Group(g) = r {
-                Some(g.id)
-            } else {
-                None
-            }
-        })
-        .collect();
+    let groups: Vec<u8> =
+        records.iter().filter_map(|r| if let Record::Group(g) = r { Some(g.id) } else { None }).collect();
     let mut orphans: Vec<u8> = records
         .iter()
-        .filter_map(|r| {
-            if let Record::Parameter(q) = r {
-                Some(q.group_id)
-            } else {
-                None
-            }
-        })
+        .filter_map(|r| if let Record::Parameter(q) = r { Some(q.group_id) } else { None })
         .filter(|id| !groups.contains(id))
         .collect();
     orphans.dedup();
     for id in orphans {
-        warnings.push(format!(
-            "parameters refer to group {id}, which is never declared"
-        ));
-        records.push(Record::Group(Group {
-            id,
-            name: format!("GROUP{id}"),
-            locked: false,
-            description: Vec::new(),
-        }));
+        warnings.push(format!("parameters refer to group {id}, which is never declared"));
+        records.push(Record::Group(Group { id, name: format!("GROUP{id}"), locked: false, description: Vec::new() }));
     }
     Ok(Parameters { records })
 }
@@ -440,27 +382,15 @@ fn read_parameter(
     locked: bool,
 ) -> Result<Parameter> {
     let section = "parameter section";
-    let err = |offset: usize, message: String| {
-        binary(
-            section,
-            offset as u64,
-            format!("parameter {name:?}: {message}"),
-        )
-    };
+    let err = |offset: usize, message: String| binary(section, offset as u64, format!("parameter {name:?}: {message}"));
     if at + 2 > end {
-        return Err(err(
-            at,
-            "record ends before its type and dimension count".into(),
-        ));
+        return Err(err(at, "record ends before its type and dimension count".into()));
     }
     let kind = bytes[at] as i8;
     let ndims = bytes[at + 1] as usize;
     let dims_at = at + 2;
     if dims_at + ndims > end {
-        return Err(err(
-            at + 1,
-            format!("{ndims} dimensions run past the record end (byte {end})"),
-        ));
+        return Err(err(at + 1, format!("{ndims} dimensions run past the record end (byte {end})")));
     }
     let dims = bytes[dims_at..dims_at + ndims].to_vec();
     let count: usize = dims.iter().map(|d| *d as usize).product();
@@ -475,9 +405,7 @@ fn read_parameter(
     if data_end > end {
         return Err(err(
             data_at,
-            format!(
-                "{count} values of {size} bytes (dimensions {dims:?}) run past the record end (byte {end})"
-            ),
+            format!("{count} values of {size} bytes (dimensions {dims:?}) run past the record end (byte {end})"),
         ));
     }
     let raw = &bytes[data_at..data_end];
@@ -485,27 +413,11 @@ fn read_parameter(
         -1 => ParamData::Char(raw.to_vec()),
         1 => ParamData::Byte(raw.to_vec()),
         2 => ParamData::Int(raw.chunks_exact(2).map(|c| p.i16([c[0], c[1]])).collect()),
-        _ => ParamData::Float(
-            raw.chunks_exact(4)
-                .map(|c| p.f32([c[0], c[1], c[2], c[3]]))
-                .collect(),
-        ),
+        _ => ParamData::Float(raw.chunks_exact(4).map(|c| p.f32([c[0], c[1], c[2], c[3]])).collect()),
     };
-    Ok(Parameter {
-        group_id,
-        name,
-        locked,
-        dims,
-        data,
-        description: description(bytes, data_end, end),
-    })
+    Ok(Parameter { group_id, name, locked, dims, data, description: description(bytes, data_end, end) })
 }
 
 fn binary(section: &str, offset: u64, message: String) -> Error {
-    Error::Binary {
-        format: "C3D",
-        section: section.to_string(),
-        offset,
-        message,
-    }
+    Error::Binary { format: "C3D", section: section.to_string(), offset, message }
 }

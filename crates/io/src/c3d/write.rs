@@ -32,10 +32,7 @@ pub fn to_bytes(file: &C3dFile) -> Result<Vec<u8>> {
         )));
     }
     if file.point_count > u16::MAX as usize {
-        return Err(Error::Unwritable(format!(
-            "{} points; C3D holds at most 65535",
-            file.point_count
-        )));
+        return Err(Error::Unwritable(format!("{} points; C3D holds at most 65535", file.point_count)));
     }
     let analog_per_frame = file.header.analog_per_frame as usize;
     if file.analog.len() != file.frames * analog_per_frame {
@@ -63,18 +60,11 @@ pub fn to_bytes(file: &C3dFile) -> Result<Vec<u8>> {
     let frames_value = file.frames as f64;
     if file.frames > u16::MAX as usize {
         // A 16-bit POINT:FRAMES cannot hold it: store a float, as several vendors do.
-        params.set(
-            "POINT",
-            "FRAMES",
-            vec![],
-            ParamData::Float(vec![file.frames as f32]),
-        );
+        params.set("POINT", "FRAMES", vec![], ParamData::Float(vec![file.frames as f32]));
     } else {
         update_number(&mut params, "POINT", "FRAMES", frames_value, false);
     }
-    let first = super::trial_field(&params, "ACTUAL_START_FIELD")
-        .unwrap_or(file.header.first_frame as u32)
-        .max(1);
+    let first = super::trial_field(&params, "ACTUAL_START_FIELD").unwrap_or(file.header.first_frame as u32).max(1);
     let last = first as u64 + (file.frames as u64).saturating_sub(1);
     if let Some(p) = params.get_mut("TRIAL", "ACTUAL_END_FIELD") {
         set_trial_field(p, last.min(u32::MAX as u64) as u32);
@@ -91,14 +81,7 @@ pub fn to_bytes(file: &C3dFile) -> Result<Vec<u8>> {
     let param_bytes = encode_parameters(&params, param_blocks)?;
 
     let mut out = Vec::with_capacity(BLOCK + param_bytes.len() + file.points.len() * 16);
-    out.extend(encode_header(
-        file,
-        storage,
-        signed_scale,
-        data_block,
-        first,
-        last,
-    ));
+    out.extend(encode_header(file, storage, signed_scale, data_block, first, last));
     out.extend(param_bytes);
     encode_data(file, storage, scale, &mut out)?;
     let pad = (BLOCK - out.len() % BLOCK) % BLOCK;
@@ -143,14 +126,7 @@ fn update_number(params: &mut Parameters, group: &str, name: &str, value: f64, f
     }
 }
 
-fn encode_header(
-    file: &C3dFile,
-    storage: Storage,
-    scale: f32,
-    data_block: usize,
-    first: u32,
-    last: u64,
-) -> Vec<u8> {
+fn encode_header(file: &C3dFile, storage: Storage, scale: f32, data_block: usize, first: u32, last: u64) -> Vec<u8> {
     let mut h = file.header.raw.clone();
     h.resize(BLOCK, 0);
     if file.processor != super::Processor::Intel {
@@ -217,9 +193,7 @@ fn encode_parameters(params: &Parameters, blocks_hint: usize) -> Result<Vec<u8>>
         let offset_at = 2 + name_len;
         let next = if i + 1 == n { 0 } else { rec.len() - offset_at };
         if next > i16::MAX as usize {
-            return Err(Error::Unwritable(
-                "a parameter record is larger than 32 KiB".into(),
-            ));
+            return Err(Error::Unwritable("a parameter record is larger than 32 KiB".into()));
         }
         rec[offset_at..offset_at + 2].copy_from_slice(&(next as i16).to_le_bytes());
         out.extend(rec);
@@ -229,9 +203,7 @@ fn encode_parameters(params: &Parameters, blocks_hint: usize) -> Result<Vec<u8>>
     out.push(0);
     let blocks = out.len().div_ceil(BLOCK).max(blocks_hint).max(1);
     if blocks > 255 {
-        return Err(Error::Unwritable(
-            "parameter section larger than 255 blocks".into(),
-        ));
+        return Err(Error::Unwritable("parameter section larger than 255 blocks".into()));
     }
     out.resize(blocks * BLOCK, 0);
     out[0] = 1;
@@ -275,9 +247,7 @@ fn push_description(rec: &mut Vec<u8>, desc: &[u8]) {
 fn checked_name(name: &str) -> Result<&[u8]> {
     let b = name.as_bytes();
     if b.is_empty() || b.len() > 127 {
-        return Err(Error::Unwritable(format!(
-            "parameter or group name {name:?} must be 1-127 bytes"
-        )));
+        return Err(Error::Unwritable(format!("parameter or group name {name:?} must be 1-127 bytes")));
     }
     Ok(b)
 }
@@ -297,40 +267,30 @@ fn encode_data(file: &C3dFile, storage: Storage, scale: f32, out: &mut Vec<u8>) 
                     for v in &w[..3] {
                         out.extend(((v / scale).round() as i16).to_le_bytes());
                     }
-                    let r = if w[3] < 0.0 {
-                        -1
-                    } else {
-                        w[3] as i32 as u16 as i16
-                    };
+                    let r = if w[3] < 0.0 { -1 } else { w[3] as i32 as u16 as i16 };
                     out.extend(r.to_le_bytes());
                 }
                 Storage::Float => w.iter().for_each(|v| out.extend(v.to_le_bytes())),
             }
         }
         match (&file.analog, storage) {
-            (AnalogSamples::Int(v), Storage::Int) => v[f * a..(f + 1) * a]
-                .iter()
-                .for_each(|x| out.extend(x.to_le_bytes())),
+            (AnalogSamples::Int(v), Storage::Int) => {
+                v[f * a..(f + 1) * a].iter().for_each(|x| out.extend(x.to_le_bytes()))
+            }
             (AnalogSamples::Int(v), Storage::Float) => {
                 let unsigned = analog_unsigned(&file.parameters);
                 v[f * a..(f + 1) * a].iter().for_each(|x| {
-                    let value = if unsigned {
-                        *x as u16 as f32
-                    } else {
-                        *x as f32
-                    };
+                    let value = if unsigned { *x as u16 as f32 } else { *x as f32 };
                     out.extend(value.to_le_bytes())
                 })
             }
-            (AnalogSamples::Float(v), Storage::Float) => v[f * a..(f + 1) * a]
-                .iter()
-                .for_each(|x| out.extend(x.to_le_bytes())),
+            (AnalogSamples::Float(v), Storage::Float) => {
+                v[f * a..(f + 1) * a].iter().for_each(|x| out.extend(x.to_le_bytes()))
+            }
             (AnalogSamples::Float(v), Storage::Int) => {
                 for x in &v[f * a..(f + 1) * a] {
                     if x.fract() != 0.0 || *x < i16::MIN as f32 || *x > i16::MAX as f32 {
-                        return Err(Error::Unwritable(
-                            "float analog samples cannot be stored as integers".into(),
-                        ));
+                        return Err(Error::Unwritable("float analog samples cannot be stored as integers".into()));
                     }
                     out.extend((*x as i16).to_le_bytes());
                 }

@@ -1,0 +1,100 @@
+"""Compares C3D files written by locap with their originals, as read by ezc3d.
+
+ezc3d (PyPI, the reference C3D reader) is a real, independent client: what it reads from
+locap's output must equal what it reads from the input. Called by tests/c3d_ezc3d.rs with a
+JSON list of {"original": path, "written": path, "reference": optional path} on stdin; the
+reference, when given, is the file ezc3d reads instead of the original (for MIPS/SGI files,
+which ezc3d cannot read, the Intel version of the same take). Prints one line per failure
+and "N passed, N failed" at the end; exits 1 if any failed.
+"""
+import json
+import sys
+
+import ezc3d
+import numpy as np
+
+
+def labels(c):
+    p = c["parameters"]["POINT"]
+    out = list(p["LABELS"]["value"]) if "LABELS" in p else []
+    n = 2
+    while f"LABELS{n}" in p:
+        out += list(p[f"LABELS{n}"]["value"])
+        n += 1
+    return [s.strip() for s in out]
+
+
+def missing_mask(points, residuals):
+    xyz = points[:3]
+    zero = np.all(xyz == 0, axis=0)
+    bad = ~np.all(np.isfinite(xyz), axis=0)
+    return zero | bad | (residuals[0] < 0)
+
+
+def compare(case):
+    ref = ezc3d.c3d(case.get("reference") or case["original"])
+    new = ezc3d.c3d(case["written"])
+    problems = []
+    n_points = ref["header"]["points"]["size"]
+    if labels(ref)[:n_points] != labels(new)[:n_points]:
+        problems.append(f"labels differ: {labels(ref)[:5]}... vs {labels(new)[:5]}...")
+    if abs(ref["header"]["points"]["frame_rate"] - new["header"]["points"]["frame_rate"]) > 1e-4:
+        problems.append("frame rate differs")
+    p_ref, p_new = ref["data"]["points"], new["data"]["points"]
+    if p_ref.shape != p_new.shape:
+        problems.append(f"point array shape {p_ref.shape} vs {p_new.shape}")
+    elif p_ref.size:
+        m_ref = missing_mask(p_ref, ref["data"]["meta_points"]["residuals"])
+        m_new = missing_mask(p_new, new["data"]["meta_points"]["residuals"])
+        if np.any(m_ref != m_new):
+            problems.append(f"{int(np.sum(m_ref != m_new))} samples changed between missing and present")
+        scale_value = float(ref["parameters"]["POINT"]["SCALE"]["value"][0])
+        tol = 1e-5 * np.maximum(1.0, np.abs(p_ref[:3])) if scale_value < 0 else abs(scale_value) * 0.51
+        ok = ~(m_ref | m_new)
+        diff = np.abs(p_ref[:3] - p_new[:3])
+        if ok.any() and np.any((diff > tol) & ok):
+            problems.append(f"point values differ by up to {np.max(np.where(ok, diff, 0)):.6g}")
+    a_ref, a_new = ref["data"]["analogs"], new["data"]["analogs"]
+    if a_ref.shape != a_new.shape:
+        problems.append(f"analog array shape {a_ref.shape} vs {a_new.shape}")
+    elif a_ref.size:
+        # Channels without an ANALOG:SCALE or OFFSET entry have no defined value (ezc3d
+        # reads uninitialised memory for them): compare the defined ones.
+        analog = ref["parameters"]["ANALOG"]
+        defined = min(len(analog["SCALE"]["value"]), len(analog["OFFSET"]["value"]), a_ref.shape[1])
+        a, b = a_ref[:, :defined], a_new[:, :defined]
+        if not np.allclose(a, b, rtol=1e-6, atol=1e-9, equal_nan=True):
+            problems.append(f"analog values differ by up to {np.nanmax(np.abs(a - b)):.6g}")
+    return problems
+
+
+def check_readable(case):
+    """For originals ezc3d cannot read (or misreads, see tests/c3d_ezc3d.rs): ezc3d must read
+    locap's output with locap's shape."""
+    new = ezc3d.c3d(case["written"])
+    shape = new["data"]["points"].shape
+    want = (4, case["points"], case["frames"])
+    return [] if shape == want else [f"ezc3d reads locap's file as {shape}, locap wrote {want}"]
+
+
+def main():
+    cases = json.load(sys.stdin)
+    passed = failed = 0
+    for case in cases:
+        if case.get("verbose"):
+            print(f"checking {case['original']}", flush=True)
+        try:
+            problems = check_readable(case) if case.get("beyond_reference") else compare(case)
+        except Exception as e:  # ezc3d raises plain exceptions on unreadable files
+            problems = [f"ezc3d failed: {e}"]
+        if problems:
+            failed += 1
+            print(f"FAIL {case['original']}: " + "; ".join(problems), flush=True)
+        else:
+            passed += 1
+    print(f"ezc3d: {passed} passed, {failed} failed")
+    sys.exit(1 if failed else 0)
+
+
+if __name__ == "__main__":
+    main()
