@@ -30,7 +30,8 @@
 //! - **Missing samples** are empty fields, absent fields (short rows), or `NaN`. A sample
 //!   with one or two of its three coordinates missing is an error rather than a guess: it
 //!   cannot be represented without inventing or dropping a coordinate.
-//! - **Frames.** The first `Frame#` becomes [`Take::first_frame`]; frame numbers must then
+//! - **Frames.** The first `Frame#` becomes [`Take::first_frame`] (`OrigDataStartFrame` if
+//!   there are no rows); frame numbers must then
 //!   increase by one per row (a jump means rows were lost or edited, which locap will not
 //!   paper over). `Time` is checked to be a number but not used: the frame rate is `DataRate`.
 //! - **`NumFrames` versus rows.** Fewer rows than declared is an error at the end of the file
@@ -282,10 +283,19 @@ pub fn read_trc_file(text: &str) -> Result<TrcFile> {
             }
         }
     }
-    if let Some(first) = first_frame {
-        take.first_frame = u32::try_from(first).map_err(|_| {
-            Error::text(FORMAT, data_start, format!("first Frame# {first} is too large"))
-        })?;
+    match first_frame {
+        Some(first) => {
+            take.first_frame = u32::try_from(first).map_err(|_| {
+                Error::text(FORMAT, data_start, format!("first Frame# {first} is too large"))
+            })?;
+        }
+        // Without rows, the header's start frame is the only record of the numbering (and
+        // what `write_trc` puts there), so an empty take keeps it through a round trip.
+        None => {
+            if let Some(Ok(start)) = header.get("OrigDataStartFrame").map(|(_, v)| v.parse::<u32>()) {
+                take.first_frame = start;
+            }
+        }
     }
 
     let mut notes = Vec::new();
