@@ -102,7 +102,7 @@ pub fn read_csv(text: &str) -> Result<Take> {
                 ),
             ));
         }
-        let frame_field = record.field(0);
+        let frame_field = record.field(0)?;
         let frame = frame_field.text.trim().parse::<u64>().map_err(|_| {
             frame_field.error(format!(
                 "frame `{}` is not a frame number",
@@ -116,7 +116,7 @@ pub fn read_csv(text: &str) -> Result<Take> {
                 "frame {frame} follows frame {prev} (line {prev_line}); frames must be consecutive"
             )));
         }
-        let time_field = record.field(1);
+        let time_field = record.field(1)?;
         let time = match time_field.text.trim().parse::<f64>() {
             Ok(t) if t.is_finite() => t,
             _ => {
@@ -136,16 +136,22 @@ pub fn read_csv(text: &str) -> Result<Take> {
         for m in 0..markers.len() {
             let mut xyz = [None; 3];
             for (axis, slot) in xyz.iter_mut().enumerate() {
-                let field = record.field(2 + 3 * m + axis);
+                let field = record.field(2 + 3 * m + axis)?;
                 *slot = parse_coordinate(&field.text).map_err(|msg| field.error(msg))?;
             }
             let sample = combine_xyz(xyz).map_err(|axis| {
-                record.field(2 + 3 * m + axis).error(format!(
-                    "marker {} has some coordinates but not {}: a sample must be complete or \
+                let column = record.field(2 + 3 * m + axis).map_or(1, |f| f.column);
+                Error::Text {
+                    format: FORMAT,
+                    line: record.line,
+                    column: Some(column),
+                    message: format!(
+                        "marker {} has some coordinates but not {}: a sample must be complete or \
                      entirely missing",
-                    markers.get(m).map(MarkerName::full).unwrap_or_default(),
-                    AXES[axis % 3]
-                ))
+                        markers.get(m).map(MarkerName::full).unwrap_or_default(),
+                        AXES[axis % 3]
+                    ),
+                }
             })?;
             samples.push(sample);
         }
@@ -229,7 +235,7 @@ fn frame_rate(rows: &[(u64, f64, usize)], header_line: usize) -> Result<f64> {
 
 fn parse_header(header: &Record) -> Result<Vec<MarkerName>> {
     for (i, expected) in ["frame", "time_s"].into_iter().enumerate() {
-        let field = header.field(i);
+        let field = header.field(i)?;
         if field.text.trim() != expected {
             return Err(field.error(format!(
                 "expected `{expected}` (header `frame,time_s,<marker>_x_mm,...`), found `{}`",
@@ -249,7 +255,7 @@ fn parse_header(header: &Record) -> Result<Vec<MarkerName>> {
     for m in 0..columns / 3 {
         let mut name: Option<String> = None;
         for (axis, label) in AXES.iter().enumerate() {
-            let field = header.field(2 + 3 * m + axis);
+            let field = header.field(2 + 3 * m + axis)?;
             let suffix = format!("_{label}_mm");
             let this = field.text.strip_suffix(suffix.as_str()).ok_or_else(|| {
                 field.error(format!(
@@ -311,21 +317,15 @@ impl Record {
         matches!(self.fields.as_slice(), [f] if f.text.trim().is_empty())
     }
 
-    /// Field `i`; callers check the width first, but a missing field reads as empty rather
-    /// than panicking.
-    fn field(&self, i: usize) -> Field {
-        match self.fields.get(i) {
-            Some(f) => Field {
-                text: f.text.clone(),
-                line: f.line,
-                column: f.column,
-            },
-            None => Field {
-                text: String::new(),
-                line: self.line,
-                column: 1,
-            },
-        }
+    /// Field `i`, or an error on this record's line if the record is shorter.
+    fn field(&self, i: usize) -> Result<&Field> {
+        self.fields.get(i).ok_or_else(|| {
+            Error::text(
+                FORMAT,
+                self.line,
+                format!("the row ends before field {}", i + 1),
+            )
+        })
     }
 }
 
