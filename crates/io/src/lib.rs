@@ -11,7 +11,7 @@
 //! - [`bvh`]: Biovision hierarchy, skeleton motion in and out.
 //! - [`asf_amc`]: Acclaim skeleton (ASF) and motion (AMC), as in the CMU database (read).
 //! - [`trc`]: OpenSim / Motion Analysis marker text files, in and out.
-//! - [`csv`]: a plain marker table for spreadsheets (write).
+//! - [`csv`]: a plain marker table for spreadsheets, written and read back (same layout).
 //!
 //! # Errors
 //! [`Error`] says where a file is broken: byte offset and section for binary files, line and
