@@ -215,52 +215,24 @@ fn content_lines(text: &str) -> impl Iterator<Item = (usize, &str)> {
 /// Words of a line with their 1-based (byte) columns in that line.
 fn words<'a>(raw: &'a str) -> impl Iterator<Item = (usize, &'a str)> + 'a {
     let base = raw.as_ptr() as usize;
-    raw.split_whitespace()
-        .map(move |w| (w.as_ptr() as usize - base + 1, w))
+    raw.split_whitespace().map(move |w| (w.as_ptr() as usize - base + 1, w))
 }
 
-fn text_err(
-    format: &'static str,
-    line: usize,
-    column: Option<usize>,
-    message: impl Into<String>,
-) -> Error {
-    Error::Text {
-        format,
-        line,
-        column,
-        message: message.into(),
-    }
+fn text_err(format: &'static str, line: usize, column: Option<usize>, message: impl Into<String>) -> Error {
+    Error::Text { format, line, column, message: message.into() }
 }
 
 /// A finite number (or, where `allow_inf`, an infinite limit).
-fn num(
-    format: &'static str,
-    line: usize,
-    col: usize,
-    word: &str,
-    what: &str,
-    allow_inf: bool,
-) -> Result<f64> {
+fn num(format: &'static str, line: usize, col: usize, word: &str, what: &str, allow_inf: bool) -> Result<f64> {
     match word.parse::<f64>() {
         Ok(v) if v.is_finite() || (allow_inf && v.is_infinite()) => Ok(v),
-        _ => Err(text_err(
-            format,
-            line,
-            Some(col),
-            format!("expected a number for {what}, found {word:?}"),
-        )),
+        _ => Err(text_err(format, line, Some(col), format!("expected a number for {what}, found {word:?}"))),
     }
 }
 
 fn three(line: usize, ws: &[(usize, &str)], what: &str) -> Result<[f64; 3]> {
     if ws.len() != 3 {
-        return Err(text_err(
-            ASF,
-            line,
-            None,
-            format!("{what} needs 3 numbers, found {}", ws.len()),
-        ));
+        return Err(text_err(ASF, line, None, format!("{what} needs 3 numbers, found {}", ws.len())));
     }
     let mut v = [0.0; 3];
     for (x, (col, w)) in v.iter_mut().zip(ws) {
@@ -270,14 +242,8 @@ fn three(line: usize, ws: &[(usize, &str)], what: &str) -> Result<[f64; 3]> {
 }
 
 fn order_of(line: usize, col: usize, word: &str) -> Result<EulerOrder> {
-    EulerOrder::parse(word).ok_or_else(|| {
-        text_err(
-            ASF,
-            line,
-            Some(col),
-            format!("expected an axis order like XYZ, found {word:?}"),
-        )
-    })
+    EulerOrder::parse(word)
+        .ok_or_else(|| text_err(ASF, line, Some(col), format!("expected an axis order like XYZ, found {word:?}")))
 }
 
 /// A bone while its `begin ... end` block is read.
@@ -307,16 +273,8 @@ enum Section {
 /// Parses the `limits` values of `raw` from byte `start` on (`(min max)` pairs, parentheses
 /// may touch the numbers). Blanking instead of cutting keeps the columns right.
 fn push_limits(line: usize, raw: &str, start: usize, limits: &mut Vec<f64>) -> Result<()> {
-    let cleaned: String = raw
-        .char_indices()
-        .map(|(i, c)| {
-            if i < start || c == '(' || c == ')' {
-                ' '
-            } else {
-                c
-            }
-        })
-        .collect();
+    let cleaned: String =
+        raw.char_indices().map(|(i, c)| if i < start || c == '(' || c == ')' { ' ' } else { c }).collect();
     for (col, w) in words(&cleaned) {
         limits.push(num(ASF, line, col, w, "a limit", true)?);
     }
@@ -328,11 +286,7 @@ pub fn read_asf(text: &str) -> Result<AsfSkeleton> {
     let mut section = Section::None;
     let mut version = None;
     let mut name = None;
-    let mut units = AsfUnits {
-        mass: 1.0,
-        length: 1.0,
-        angle: AngleUnit::Degree,
-    };
+    let mut units = AsfUnits { mass: 1.0, length: 1.0, angle: AngleUnit::Degree };
     let mut root_order: Option<Vec<Dof>> = None;
     let mut root_axis = EulerOrder::XYZ;
     let mut root_position = Vec3::zeros();
@@ -354,12 +308,7 @@ pub fn read_asf(text: &str) -> Result<AsfSkeleton> {
         let rest = ws.get(1..).unwrap_or(&[]);
         if let Some(keyword) = key.strip_prefix(':') {
             if current.is_some() {
-                return Err(text_err(
-                    ASF,
-                    line,
-                    Some(key_col),
-                    "section starts inside a bone's begin ... end",
-                ));
+                return Err(text_err(ASF, line, Some(key_col), "section starts inside a bone's begin ... end"));
             }
             section = match keyword.to_ascii_lowercase().as_str() {
                 "version" => {
@@ -382,28 +331,16 @@ pub fn read_asf(text: &str) -> Result<AsfSkeleton> {
         match section {
             Section::Skip => {}
             Section::None => {
-                return Err(text_err(
-                    ASF,
-                    line,
-                    Some(key_col),
-                    format!("{key:?} outside any section"),
-                ));
+                return Err(text_err(ASF, line, Some(key_col), format!("{key:?} outside any section")));
             }
             Section::Units => {
-                let value = rest
-                    .first()
-                    .ok_or_else(|| text_err(ASF, line, None, format!("{key} has no value")))?;
+                let value = rest.first().ok_or_else(|| text_err(ASF, line, None, format!("{key} has no value")))?;
                 match key.to_ascii_lowercase().as_str() {
                     "mass" => units.mass = num(ASF, line, value.0, value.1, "mass", false)?,
                     "length" => {
                         let v = num(ASF, line, value.0, value.1, "length", false)?;
                         if v <= 0.0 {
-                            return Err(text_err(
-                                ASF,
-                                line,
-                                Some(value.0),
-                                "length unit must be positive",
-                            ));
+                            return Err(text_err(ASF, line, Some(value.0), "length unit must be positive"));
                         }
                         units.length = v;
                     }
@@ -428,57 +365,36 @@ pub fn read_asf(text: &str) -> Result<AsfSkeleton> {
                 "order" => {
                     let mut order = Vec::with_capacity(rest.len());
                     for &(col, w) in rest {
-                        let dof = Dof::parse(w).ok_or_else(|| {
-                            text_err(ASF, line, Some(col), format!("unknown root dof {w:?}"))
-                        })?;
+                        let dof = Dof::parse(w)
+                            .ok_or_else(|| text_err(ASF, line, Some(col), format!("unknown root dof {w:?}")))?;
                         if order.contains(&dof) {
-                            return Err(text_err(
-                                ASF,
-                                line,
-                                Some(col),
-                                format!("root dof {w:?} listed twice"),
-                            ));
+                            return Err(text_err(ASF, line, Some(col), format!("root dof {w:?} listed twice")));
                         }
                         order.push(dof);
                     }
                     root_order = Some(order);
                 }
                 "axis" => {
-                    let &(col, w) = rest
-                        .first()
-                        .ok_or_else(|| text_err(ASF, line, None, "axis needs an order like XYZ"))?;
+                    let &(col, w) =
+                        rest.first().ok_or_else(|| text_err(ASF, line, None, "axis needs an order like XYZ"))?;
                     root_axis = order_of(line, col, w)?;
                 }
                 "position" => root_position = Vec3::from(three(line, rest, "position")?),
                 "orientation" => {
-                    root_orientation =
-                        three(line, rest, "orientation")?.map(|a| units.angle.to_degrees(a));
+                    root_orientation = three(line, rest, "orientation")?.map(|a| units.angle.to_degrees(a));
                 }
                 _ => {
-                    return Err(text_err(
-                        ASF,
-                        line,
-                        Some(key_col),
-                        format!("unknown root field {key:?}"),
-                    ));
+                    return Err(text_err(ASF, line, Some(key_col), format!("unknown root field {key:?}")));
                 }
             },
             Section::BoneData => {
                 let lower = key.to_ascii_lowercase();
                 let Some(bone) = current.as_mut() else {
                     if lower == "begin" {
-                        current = Some(BoneDraft {
-                            line,
-                            ..BoneDraft::default()
-                        });
+                        current = Some(BoneDraft { line, ..BoneDraft::default() });
                         continue;
                     }
-                    return Err(text_err(
-                        ASF,
-                        line,
-                        Some(key_col),
-                        format!("expected \"begin\", found {key:?}"),
-                    ));
+                    return Err(text_err(ASF, line, Some(key_col), format!("expected \"begin\", found {key:?}")));
                 };
                 if key.starts_with('(') && bone.in_limits {
                     let mut flat = Vec::new();
@@ -494,42 +410,25 @@ pub fn read_asf(text: &str) -> Result<AsfSkeleton> {
                         }
                     }
                     "begin" => {
-                        return Err(text_err(
-                            ASF,
-                            line,
-                            Some(key_col),
-                            "\"begin\" inside a bone",
-                        ));
+                        return Err(text_err(ASF, line, Some(key_col), "\"begin\" inside a bone"));
                     }
                     "id" => {
-                        let &(col, w) = rest
-                            .first()
-                            .ok_or_else(|| text_err(ASF, line, None, "id has no value"))?;
-                        bone.id = Some(w.parse().map_err(|_| {
-                            text_err(ASF, line, Some(col), format!("expected an id, found {w:?}"))
-                        })?);
+                        let &(col, w) = rest.first().ok_or_else(|| text_err(ASF, line, None, "id has no value"))?;
+                        bone.id = Some(
+                            w.parse()
+                                .map_err(|_| text_err(ASF, line, Some(col), format!("expected an id, found {w:?}")))?,
+                        );
                     }
                     "name" => {
-                        let &(col, w) = rest
-                            .first()
-                            .ok_or_else(|| text_err(ASF, line, None, "name has no value"))?;
+                        let &(col, w) = rest.first().ok_or_else(|| text_err(ASF, line, None, "name has no value"))?;
                         if w.eq_ignore_ascii_case("root") {
-                            return Err(text_err(
-                                ASF,
-                                line,
-                                Some(col),
-                                "a bone cannot be called \"root\"",
-                            ));
+                            return Err(text_err(ASF, line, Some(col), "a bone cannot be called \"root\""));
                         }
                         bone.name = Some(w.to_string());
                     }
-                    "direction" => {
-                        bone.direction = Some(Vec3::from(three(line, rest, "direction")?))
-                    }
+                    "direction" => bone.direction = Some(Vec3::from(three(line, rest, "direction")?)),
                     "length" => {
-                        let &(col, w) = rest
-                            .first()
-                            .ok_or_else(|| text_err(ASF, line, None, "length has no value"))?;
+                        let &(col, w) = rest.first().ok_or_else(|| text_err(ASF, line, None, "length has no value"))?;
                         let v = num(ASF, line, col, w, "length", false)?;
                         if v < 0.0 {
                             return Err(text_err(ASF, line, Some(col), "negative bone length"));
@@ -538,33 +437,19 @@ pub fn read_asf(text: &str) -> Result<AsfSkeleton> {
                     }
                     "axis" => {
                         let (angles, order) = match rest {
-                            [a, b, c, o] => (
-                                three(line, &[*a, *b, *c], "axis")?,
-                                order_of(line, o.0, o.1)?,
-                            ),
+                            [a, b, c, o] => (three(line, &[*a, *b, *c], "axis")?, order_of(line, o.0, o.1)?),
                             _ => {
-                                return Err(text_err(
-                                    ASF,
-                                    line,
-                                    None,
-                                    "axis needs 3 angles and an order like XYZ",
-                                ));
+                                return Err(text_err(ASF, line, None, "axis needs 3 angles and an order like XYZ"));
                             }
                         };
                         bone.axis = Some((angles.map(|a| units.angle.to_degrees(a)), order));
                     }
                     "dof" => {
                         for &(col, w) in rest {
-                            let dof = Dof::parse(w).ok_or_else(|| {
-                                text_err(ASF, line, Some(col), format!("unknown dof {w:?}"))
-                            })?;
+                            let dof = Dof::parse(w)
+                                .ok_or_else(|| text_err(ASF, line, Some(col), format!("unknown dof {w:?}")))?;
                             if bone.dof.contains(&dof) {
-                                return Err(text_err(
-                                    ASF,
-                                    line,
-                                    Some(col),
-                                    format!("dof {w:?} listed twice"),
-                                ));
+                                return Err(text_err(ASF, line, Some(col), format!("dof {w:?} listed twice")));
                             }
                             bone.dof.push(dof);
                         }
@@ -586,12 +471,7 @@ pub fn read_asf(text: &str) -> Result<AsfSkeleton> {
                         in_hierarchy_block = true;
                         continue;
                     }
-                    return Err(text_err(
-                        ASF,
-                        line,
-                        Some(key_col),
-                        format!("expected \"begin\", found {key:?}"),
-                    ));
+                    return Err(text_err(ASF, line, Some(key_col), format!("expected \"begin\", found {key:?}")));
                 }
                 if lower == "end" {
                     in_hierarchy_block = false;
@@ -602,117 +482,58 @@ pub fn read_asf(text: &str) -> Result<AsfSkeleton> {
                     if child.eq_ignore_ascii_case("root") {
                         return Err(text_err(ASF, line, Some(col), "the root cannot be a child"));
                     }
-                    if parent_of
-                        .insert(child.to_string(), (key.to_string(), line))
-                        .is_some()
-                    {
-                        return Err(text_err(
-                            ASF,
-                            line,
-                            Some(col),
-                            format!("bone {child:?} has a second parent"),
-                        ));
+                    if parent_of.insert(child.to_string(), (key.to_string(), line)).is_some() {
+                        return Err(text_err(ASF, line, Some(col), format!("bone {child:?} has a second parent")));
                     }
-                    children_of
-                        .entry(key.to_string())
-                        .or_default()
-                        .push(child.to_string());
+                    children_of.entry(key.to_string()).or_default().push(child.to_string());
                 }
             }
         }
     }
     if current.is_some() {
-        return Err(text_err(
-            ASF,
-            last_line,
-            None,
-            "file ends inside a bone's begin ... end",
-        ));
+        return Err(text_err(ASF, last_line, None, "file ends inside a bone's begin ... end"));
     }
     if in_hierarchy_block {
-        return Err(text_err(
-            ASF,
-            last_line,
-            None,
-            "file ends inside the :hierarchy block",
-        ));
+        return Err(text_err(ASF, last_line, None, "file ends inside the :hierarchy block"));
     }
-    let order = root_order.ok_or_else(|| {
-        text_err(
-            ASF,
-            last_line,
-            None,
-            "no root \"order\" in the :root section",
-        )
-    })?;
+    let order = root_order.ok_or_else(|| text_err(ASF, last_line, None, "no root \"order\" in the :root section"))?;
 
     // Check every draft, then order bones parents first by walking the hierarchy.
     let mut by_name: HashMap<String, BoneDraft> = HashMap::new();
     let mut file_order = Vec::new();
     for d in drafts {
-        let bone_name = d
-            .name
-            .clone()
-            .ok_or_else(|| text_err(ASF, d.line, None, "bone without a name"))?;
+        let bone_name = d.name.clone().ok_or_else(|| text_err(ASF, d.line, None, "bone without a name"))?;
         if d.direction.is_none() || d.length.is_none() {
-            return Err(text_err(
-                ASF,
-                d.line,
-                None,
-                format!("bone {bone_name:?} lacks a direction or length"),
-            ));
+            return Err(text_err(ASF, d.line, None, format!("bone {bone_name:?} lacks a direction or length")));
         }
         if !d.limits.is_empty() && d.limits.len() != d.dof.len() {
             return Err(text_err(
                 ASF,
                 d.line,
                 None,
-                format!(
-                    "bone {bone_name:?} has {} dofs but {} limits",
-                    d.dof.len(),
-                    d.limits.len()
-                ),
+                format!("bone {bone_name:?} has {} dofs but {} limits", d.dof.len(), d.limits.len()),
             ));
         }
         if by_name.contains_key(&bone_name) {
-            return Err(text_err(
-                ASF,
-                d.line,
-                None,
-                format!("bone name {bone_name:?} is used twice"),
-            ));
+            return Err(text_err(ASF, d.line, None, format!("bone name {bone_name:?} is used twice")));
         }
         file_order.push(bone_name.clone());
         by_name.insert(bone_name, d);
     }
     for (child, (parent, line)) in &parent_of {
         if !by_name.contains_key(child) {
-            return Err(text_err(
-                ASF,
-                *line,
-                None,
-                format!(":hierarchy names unknown bone {child:?}"),
-            ));
+            return Err(text_err(ASF, *line, None, format!(":hierarchy names unknown bone {child:?}")));
         }
         if !parent.eq_ignore_ascii_case("root") && !by_name.contains_key(parent) {
-            return Err(text_err(
-                ASF,
-                *line,
-                None,
-                format!(":hierarchy names unknown bone {parent:?}"),
-            ));
+            return Err(text_err(ASF, *line, None, format!(":hierarchy names unknown bone {parent:?}")));
         }
     }
     let mut bones: Vec<AsfBone> = Vec::with_capacity(by_name.len());
     let mut index_of: HashMap<String, usize> = HashMap::new();
     // Depth-first, explicit stack: (parent index, child name).
-    let root_children = children_of
-        .iter()
-        .find(|(k, _)| k.eq_ignore_ascii_case("root"))
-        .map(|(_, v)| v.clone())
-        .unwrap_or_default();
-    let mut stack: Vec<(Option<usize>, String)> =
-        root_children.into_iter().rev().map(|c| (None, c)).collect();
+    let root_children =
+        children_of.iter().find(|(k, _)| k.eq_ignore_ascii_case("root")).map(|(_, v)| v.clone()).unwrap_or_default();
+    let mut stack: Vec<(Option<usize>, String)> = root_children.into_iter().rev().map(|c| (None, c)).collect();
     while let Some((parent, child)) = stack.pop() {
         let Some(d) = by_name.get(&child) else {
             continue;
@@ -765,18 +586,13 @@ pub fn read_asf(text: &str) -> Result<AsfSkeleton> {
         version,
         name,
         units,
-        root: AsfRoot {
-            order,
-            axis: root_axis,
-            position: root_position,
-            orientation_deg: root_orientation,
-        },
+        root: AsfRoot { order, axis: root_axis, position: root_position, orientation_deg: root_orientation },
         bones,
     })
 }
 
 fn pairs_into(line: usize, flat: &[f64], limits: &mut Vec<(f64, f64)>) -> Result<()> {
-    if flat.len() % 2 != 0 {
+    if !flat.len().is_multiple_of(2) {
         return Err(text_err(ASF, line, None, "limits come in (min max) pairs"));
     }
     limits.extend(flat.chunks_exact(2).map(|p| (p[0], p[1])));
@@ -803,9 +619,7 @@ impl AsfSkeleton {
     pub fn to_skeleton(&self, mm_per_length_unit: f64) -> Result<Skeleton> {
         let s = mm_per_length_unit;
         if !(s.is_finite() && s > 0.0) {
-            return Err(Error::Unsupported(format!(
-                "length scale {s} mm per unit is not a positive number"
-            )));
+            return Err(Error::Unsupported(format!("length scale {s} mm per unit is not a positive number")));
         }
         let mut names: HashSet<&str> = self.bones.iter().map(|b| b.name.as_str()).collect();
         names.insert("root");
@@ -866,10 +680,7 @@ impl AsfSkeleton {
 }
 
 fn bad_parent(bone: &AsfBone) -> Error {
-    Error::Unsupported(format!(
-        "bone {:?}: its parent does not come before it",
-        bone.name
-    ))
+    Error::Unsupported(format!("bone {:?}: its parent does not come before it", bone.name))
 }
 
 /// The core order closest to how the file rotates this bone: its rotation dofs in listed
@@ -905,12 +716,7 @@ pub fn read_amc(text: &str, asf: &AsfSkeleton, frame_rate_hz: f64) -> Result<Mot
 }
 
 /// [`read_amc`] with an explicit length scale, to match [`AsfSkeleton::to_skeleton`].
-pub fn read_amc_scaled(
-    text: &str,
-    asf: &AsfSkeleton,
-    frame_rate_hz: f64,
-    mm_per_length_unit: f64,
-) -> Result<Motion> {
+pub fn read_amc_scaled(text: &str, asf: &AsfSkeleton, frame_rate_hz: f64, mm_per_length_unit: f64) -> Result<Motion> {
     let skeleton = asf.to_skeleton(mm_per_length_unit)?;
     for bone in &asf.bones {
         if bone.dof.iter().any(|d| d.rotation_axis().is_none()) {
@@ -932,19 +738,13 @@ pub fn read_amc_scaled(
     for (i, b) in asf.bones.iter().enumerate() {
         slots.insert(b.name.as_str(), i + 1);
     }
-    let dofs: Vec<&[Dof]> = std::iter::once(asf.root.order.as_slice())
-        .chain(asf.bones.iter().map(|b| b.dof.as_slice()))
-        .collect();
+    let dofs: Vec<&[Dof]> =
+        std::iter::once(asf.root.order.as_slice()).chain(asf.bones.iter().map(|b| b.dof.as_slice())).collect();
     // The constant frames C and C^-1 of every bone (and the root).
-    let frames: Vec<(Quat, Quat)> =
-        std::iter::once(axis_frame(asf.root.axis, asf.root.orientation_deg))
-            .chain(
-                asf.bones
-                    .iter()
-                    .map(|b| axis_frame(b.axis_order, b.axis_deg)),
-            )
-            .map(|c| (c, c.inverse()))
-            .collect();
+    let frames: Vec<(Quat, Quat)> = std::iter::once(axis_frame(asf.root.axis, asf.root.orientation_deg))
+        .chain(asf.bones.iter().map(|b| axis_frame(b.axis_order, b.axis_deg)))
+        .map(|c| (c, c.inverse()))
+        .collect();
 
     let mut angle_unit = asf.units.angle;
     let mut values: Vec<Vec<f64>> = vec![Vec::new(); bone_count + 1];
@@ -955,13 +755,9 @@ pub fn read_amc_scaled(
 
     let mut finish = |values: &mut Vec<Vec<f64>>, seen: &mut Vec<bool>, unit: AngleUnit| {
         let mut p = asf.root.position * s;
-        for (slot, (vals, ((c, c_inv), dof))) in
-            values.iter().zip(frames.iter().zip(&dofs)).enumerate()
-        {
+        for (slot, (vals, ((c, c_inv), dof))) in values.iter().zip(frames.iter().zip(&dofs)).enumerate() {
             let m = acclaim_rotation(
-                dof.iter()
-                    .zip(vals)
-                    .filter_map(|(d, v)| d.rotation_axis().map(|a| (a, unit.to_degrees(*v)))),
+                dof.iter().zip(vals).filter_map(|(d, v)| d.rotation_axis().map(|a| (a, unit.to_degrees(*v)))),
             );
             rotations.push(c * m * c_inv);
             if slot == 0 {
@@ -974,10 +770,7 @@ pub fn read_amc_scaled(
         }
         root_positions.push(p);
         // End sites never rotate.
-        rotations.extend(std::iter::repeat_n(
-            Quat::identity(),
-            joints.saturating_sub(bone_count + 1),
-        ));
+        rotations.extend(std::iter::repeat_n(Quat::identity(), joints.saturating_sub(bone_count + 1)));
         for v in values.iter_mut() {
             v.clear();
         }
@@ -991,12 +784,7 @@ pub fn read_amc_scaled(
         };
         if let Some(keyword) = key.strip_prefix(':') {
             if frame_number.is_some() {
-                return Err(text_err(
-                    AMC,
-                    line,
-                    Some(col),
-                    "header keyword after the first frame",
-                ));
+                return Err(text_err(AMC, line, Some(col), "header keyword after the first frame"));
             }
             match keyword.to_ascii_uppercase().as_str() {
                 "DEGREES" => angle_unit = AngleUnit::Degree,
@@ -1010,12 +798,7 @@ pub fn read_amc_scaled(
         {
             if let Some(prev) = frame_number {
                 if prev.checked_add(1) != Some(n) {
-                    return Err(text_err(
-                        AMC,
-                        line,
-                        Some(col),
-                        format!("frame {n} follows frame {prev}"),
-                    ));
+                    return Err(text_err(AMC, line, Some(col), format!("frame {n} follows frame {prev}")));
                 }
                 finish(&mut values, &mut seen, angle_unit);
             }
@@ -1023,33 +806,16 @@ pub fn read_amc_scaled(
             continue;
         }
         if frame_number.is_none() {
-            return Err(text_err(
-                AMC,
-                line,
-                Some(col),
-                format!("expected a frame number, found {key:?}"),
-            ));
+            return Err(text_err(AMC, line, Some(col), format!("expected a frame number, found {key:?}")));
         }
-        let slot = *slots.get(key).ok_or_else(|| {
-            text_err(
-                AMC,
-                line,
-                Some(col),
-                format!("unknown bone {key:?} (not in the ASF)"),
-            )
-        })?;
-        let (Some(vals), Some(dof), Some(flag)) =
-            (values.get_mut(slot), dofs.get(slot), seen.get_mut(slot))
-        else {
+        let slot = *slots
+            .get(key)
+            .ok_or_else(|| text_err(AMC, line, Some(col), format!("unknown bone {key:?} (not in the ASF)")))?;
+        let (Some(vals), Some(dof), Some(flag)) = (values.get_mut(slot), dofs.get(slot), seen.get_mut(slot)) else {
             continue;
         };
         if *flag {
-            return Err(text_err(
-                AMC,
-                line,
-                Some(col),
-                format!("bone {key:?} appears twice in one frame"),
-            ));
+            return Err(text_err(AMC, line, Some(col), format!("bone {key:?} appears twice in one frame")));
         }
         *flag = true;
         let given = ws.get(1..).unwrap_or(&[]);
@@ -1058,11 +824,7 @@ pub fn read_amc_scaled(
                 AMC,
                 line,
                 None,
-                format!(
-                    "bone {key:?} has {} dofs, the line gives {} values",
-                    dof.len(),
-                    given.len()
-                ),
+                format!("bone {key:?} has {} dofs, the line gives {} values", dof.len(), given.len()),
             ));
         }
         for &(c, w) in given {
@@ -1072,12 +834,7 @@ pub fn read_amc_scaled(
     if frame_number.is_some() {
         finish(&mut values, &mut seen, angle_unit);
     }
-    Ok(Motion::new(
-        skeleton,
-        rotations,
-        root_positions,
-        frame_rate_hz,
-    )?)
+    Ok(Motion::new(skeleton, rotations, root_positions, frame_rate_hz)?)
 }
 
 /// Reads an AMC file (see [`read_amc`]); errors name the file.
@@ -1123,10 +880,7 @@ mod tests {
         // of a (2, 0, 0) goes to (0, 0, -2). (The reverse product would turn about Z.)
         // Bone b: M = Rz(90) Rx(90) takes its direction Y to Z (Rx first), not to -X.
         let m = read_amc(
-            &amc(&[
-                "root 0 0 0 0 0 0\r\na 90\r\nb 0 0\r\n",
-                "root 1 2 3 0 0 0\r\na 0\r\nb 90 90\r\n",
-            ]),
+            &amc(&["root 0 0 0 0 0 0\r\na 90\r\nb 0 0\r\n", "root 1 2 3 0 0 0\r\na 0\r\nb 90 90\r\n"]),
             &asf,
             120.0,
         )
@@ -1134,25 +888,16 @@ mod tests {
         assert_eq!(m.frame_count(), 2);
         let s = asf.mm_per_unit();
         let p = m.forward_kinematics(0).positions_mm;
-        assert!(
-            (p[2] - Vec3::new(0.0, 0.0, -2.0 * s)).norm() < 1e-9,
-            "{:?}",
-            p[2]
-        );
+        assert!((p[2] - Vec3::new(0.0, 0.0, -2.0 * s)).norm() < 1e-9, "{:?}", p[2]);
         let p = m.forward_kinematics(1).positions_mm;
         assert!((p[0] - Vec3::new(1.0, 2.0, 3.0) * s).norm() < 1e-9);
-        assert!(
-            (p[3] - Vec3::new(3.0, 2.0, 4.0) * s).norm() < 1e-9,
-            "{:?}",
-            p[3]
-        );
+        assert!((p[3] - Vec3::new(3.0, 2.0, 4.0) * s).norm() < 1e-9, "{:?}", p[3]);
     }
 
     #[test]
     fn radians_header_is_honoured() {
         let asf = read_asf(ASF_TEXT).unwrap();
-        let text =
-            amc(&["root 0 0 0 0 0 0\r\na 1.5707963267948966\r\n"]).replace(":DEGREES", ":RADIANS");
+        let text = amc(&["root 0 0 0 0 0 0\r\na 1.5707963267948966\r\n"]).replace(":DEGREES", ":RADIANS");
         let m = read_amc(&text, &asf, 120.0).unwrap();
         let p = m.forward_kinematics(0).positions_mm;
         assert!((p[2] - Vec3::new(0.0, 0.0, -2.0 * asf.mm_per_unit())).norm() < 1e-9);
@@ -1162,37 +907,23 @@ mod tests {
     fn amc_errors_name_the_line() {
         let asf = read_asf(ASF_TEXT).unwrap();
         let check = |text: String, want_line: usize| match read_amc(&text, &asf, 120.0) {
-            Err(Error::Text {
-                format: "AMC",
-                line,
-                ..
-            }) => assert_eq!(line, want_line, "{text}"),
+            Err(Error::Text { format: "AMC", line, .. }) => assert_eq!(line, want_line, "{text}"),
             other => panic!("{other:?}"),
         };
         check(amc(&["root 0 0 0 0 0 0\r\nzzz 1\r\n"]), 6);
         check(amc(&["root 0 0 0 0 0 0\r\na x\r\n"]), 6);
         check(amc(&["root 0 0 0 0 0\r\n"]), 5);
         check(amc(&["a 1\r\na 2\r\n"]), 6);
-        check(
-            amc(&["a 1\r\n"]).replace("\r\n2\r\n", "\r\n3\r\n") + "3\r\n",
-            6,
-        );
+        check(amc(&["a 1\r\n"]).replace("\r\n2\r\n", "\r\n3\r\n") + "3\r\n", 6);
         check("a 1\r\n".into(), 1);
         // Skipped frame number.
-        check(
-            amc(&["a 1\r\n", "a 1\r\n"]).replace("\r\n2\r\n", "\r\n4\r\n"),
-            6,
-        );
+        check(amc(&["a 1\r\n", "a 1\r\n"]).replace("\r\n2\r\n", "\r\n4\r\n"), 6);
     }
 
     #[test]
     fn asf_errors_name_the_line() {
         let check = |text: String, want_line: usize| match read_asf(&text) {
-            Err(Error::Text {
-                format: "ASF",
-                line,
-                ..
-            }) => assert_eq!(line, want_line, "{text}"),
+            Err(Error::Text { format: "ASF", line, .. }) => assert_eq!(line, want_line, "{text}"),
             other => panic!("{other:?}"),
         };
         check(ASF_TEXT.replace("length 2", "length two"), 20);
@@ -1210,10 +941,7 @@ mod tests {
                 assert!(matches!(e, Error::Text { .. }), "cut at {i}: {e:?}");
             }
         }
-        let text = amc(&[
-            "root 0 0 0 0 0 0\r\na 90\r\nb 0 0\r\n",
-            "root 1 2 3 0 0 0\r\na 0\r\nb 90 90\r\n",
-        ]);
+        let text = amc(&["root 0 0 0 0 0 0\r\na 90\r\nb 0 0\r\n", "root 1 2 3 0 0 0\r\na 0\r\nb 90 90\r\n"]);
         for (i, _) in text.char_indices() {
             if let Err(e) = read_amc(&text[..i], &asf, 120.0) {
                 assert!(matches!(e, Error::Text { .. }), "cut at {i}: {e:?}");

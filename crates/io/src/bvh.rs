@@ -56,50 +56,32 @@ fn tokens_of(line_text: &str, line: usize) -> impl Iterator<Item = Token<'_>> {
         column += 1;
         if ch.is_whitespace() {
             if let Some((b, c)) = start.take() {
-                out.push(Token {
-                    text: &line_text[b..byte],
-                    line,
-                    column: c,
-                });
+                out.push(Token { text: &line_text[b..byte], line, column: c });
             }
         } else if start.is_none() {
             start = Some((byte, column));
         }
     }
     if let Some((b, c)) = start {
-        out.push(Token {
-            text: &line_text[b..],
-            line,
-            column: c,
-        });
+        out.push(Token { text: &line_text[b..], line, column: c });
     }
     out.into_iter()
 }
 
 /// Lines of `text` without their `\r\n` / `\n` ending, numbered from 1.
 fn numbered_lines(text: &str) -> impl Iterator<Item = (usize, &str)> {
-    text.split('\n')
-        .enumerate()
-        .map(|(i, l)| (i + 1, l.strip_suffix('\r').unwrap_or(l)))
+    text.split('\n').enumerate().map(|(i, l)| (i + 1, l.strip_suffix('\r').unwrap_or(l)))
 }
 
 fn err_at(tok: &Token<'_>, message: impl Into<String>) -> Error {
-    Error::Text {
-        format: FORMAT,
-        line: tok.line,
-        column: Some(tok.column),
-        message: message.into(),
-    }
+    Error::Text { format: FORMAT, line: tok.line, column: Some(tok.column), message: message.into() }
 }
 
 /// Parses a finite number; NaN and infinities are refused because no capture value is one.
 fn number(tok: &Token<'_>, what: &str) -> Result<f64> {
     match tok.text.parse::<f64>() {
         Ok(v) if v.is_finite() => Ok(v),
-        _ => Err(err_at(
-            tok,
-            format!("expected a number for {what}, found {:?}", tok.text),
-        )),
+        _ => Err(err_at(tok, format!("expected a number for {what}, found {:?}", tok.text))),
     }
 }
 
@@ -160,11 +142,7 @@ impl<'a> Cursor<'a> {
                 self.at += 1;
                 Ok(*t)
             }
-            None => Err(Error::text(
-                FORMAT,
-                self.end_line,
-                format!("file ends where {expected} was expected"),
-            )),
+            None => Err(Error::text(FORMAT, self.end_line, format!("file ends where {expected} was expected"))),
         }
     }
 
@@ -173,10 +151,7 @@ impl<'a> Cursor<'a> {
         if tok.text.eq_ignore_ascii_case(word) {
             Ok(tok)
         } else {
-            Err(err_at(
-                &tok,
-                format!("expected {word:?}, found {:?}", tok.text),
-            ))
+            Err(err_at(&tok, format!("expected {word:?}, found {:?}", tok.text)))
         }
     }
 }
@@ -207,9 +182,7 @@ fn parse_hierarchy(cursor: &mut Cursor<'_>) -> Result<Vec<Declared>> {
                 for x in &mut v {
                     *x = number(&cursor.next("an OFFSET value")?, "OFFSET")?;
                 }
-                let joint = joints
-                    .get_mut(current)
-                    .ok_or_else(|| err_at(&tok, "internal: no joint"))?;
+                let joint = joints.get_mut(current).ok_or_else(|| err_at(&tok, "internal: no joint"))?;
                 if joint.offset.is_some() {
                     return Err(err_at(&tok, "second OFFSET in one joint"));
                 }
@@ -217,43 +190,30 @@ fn parse_hierarchy(cursor: &mut Cursor<'_>) -> Result<Vec<Declared>> {
             }
             "CHANNELS" => {
                 let count_tok = cursor.next("a channel count")?;
-                let count: usize = count_tok.text.parse().map_err(|_| {
-                    err_at(
-                        &count_tok,
-                        format!("expected a channel count, found {:?}", count_tok.text),
-                    )
-                })?;
+                let count: usize = count_tok
+                    .text
+                    .parse()
+                    .map_err(|_| err_at(&count_tok, format!("expected a channel count, found {:?}", count_tok.text)))?;
                 if count > 6 {
-                    return Err(err_at(
-                        &count_tok,
-                        format!("{count} channels; at most 6 are possible"),
-                    ));
+                    return Err(err_at(&count_tok, format!("{count} channels; at most 6 are possible")));
                 }
                 let mut channels = Vec::with_capacity(count);
                 for _ in 0..count {
                     let ch_tok = cursor.next("a channel name")?;
                     let ch = parse_channel(&ch_tok)?;
                     if channels.contains(&ch) {
-                        return Err(err_at(
-                            &ch_tok,
-                            format!("channel {:?} listed twice", ch_tok.text),
-                        ));
+                        return Err(err_at(&ch_tok, format!("channel {:?} listed twice", ch_tok.text)));
                     }
                     if matches!(ch, Channel::Position(_)) && current != 0 {
                         return Err(Error::Unsupported(format!(
                             "BVH line {}: position channels on joint {:?}, which is not the root",
                             ch_tok.line,
-                            joints
-                                .get(current)
-                                .and_then(|j| j.name.clone())
-                                .unwrap_or_default()
+                            joints.get(current).and_then(|j| j.name.clone()).unwrap_or_default()
                         )));
                     }
                     channels.push(ch);
                 }
-                let joint = joints
-                    .get_mut(current)
-                    .ok_or_else(|| err_at(&tok, "internal: no joint"))?;
+                let joint = joints.get_mut(current).ok_or_else(|| err_at(&tok, "internal: no joint"))?;
                 if joint.is_end_site {
                     return Err(err_at(&tok, "an End Site has no channels"));
                 }
@@ -291,30 +251,18 @@ fn parse_hierarchy(cursor: &mut Cursor<'_>) -> Result<Vec<Declared>> {
                 open.pop();
             }
             "ROOT" => {
-                return Err(err_at(
-                    &tok,
-                    "ROOT inside a joint (or a second ROOT): not supported",
-                ));
+                return Err(err_at(&tok, "ROOT inside a joint (or a second ROOT): not supported"));
             }
             _ => {
                 return Err(err_at(
                     &tok,
-                    format!(
-                        "expected OFFSET, CHANNELS, JOINT, End Site or \"}}\", found {:?}",
-                        tok.text
-                    ),
+                    format!("expected OFFSET, CHANNELS, JOINT, End Site or \"}}\", found {:?}", tok.text),
                 ));
             }
         }
     }
     if let Some(extra) = cursor.tokens.get(cursor.at) {
-        return Err(err_at(
-            extra,
-            format!(
-                "expected MOTION after the root block, found {:?}",
-                extra.text
-            ),
-        ));
+        return Err(err_at(extra, format!("expected MOTION after the root block, found {:?}", extra.text)));
     }
     Ok(joints)
 }
@@ -326,11 +274,7 @@ fn build_skeleton(declared: &[Declared], mm: f64) -> Result<(Skeleton, Vec<Decod
         if let Some(name) = &d.name
             && !names.insert(name.clone())
         {
-            return Err(Error::text(
-                FORMAT,
-                d.line,
-                format!("joint name {name:?} is used twice"),
-            ));
+            return Err(Error::text(FORMAT, d.line, format!("joint name {name:?} is used twice")));
         }
     }
     let mut joints: Vec<Joint> = Vec::with_capacity(declared.len());
@@ -340,11 +284,7 @@ fn build_skeleton(declared: &[Declared], mm: f64) -> Result<(Skeleton, Vec<Decod
         let name = match &d.name {
             Some(n) => n.clone(),
             None => {
-                let parent_name = d
-                    .parent
-                    .and_then(|p| joints.get(p))
-                    .map(|j| j.name.as_str())
-                    .unwrap_or("Root");
+                let parent_name = d.parent.and_then(|p| joints.get(p)).map(|j| j.name.as_str()).unwrap_or("Root");
                 let base = format!("{parent_name}_End");
                 let mut name = base.clone();
                 let mut k = 2usize;
@@ -379,21 +319,13 @@ fn build_skeleton(declared: &[Declared], mm: f64) -> Result<(Skeleton, Vec<Decod
                 }
             }
             let arr: [usize; 3] = [axes[0], axes[1], axes[2]];
-            EulerOrder::from_axes(arr)
-                .ok_or_else(|| Error::text(FORMAT, d.line, "rotation axis listed twice"))?
+            EulerOrder::from_axes(arr).ok_or_else(|| Error::text(FORMAT, d.line, "rotation axis listed twice"))?
         };
         let mut angle_slots = [None; 3];
         for (pos, axis) in order.axes().iter().enumerate() {
-            angle_slots[pos] = rotation_slots
-                .iter()
-                .find(|(a, _)| a == axis)
-                .map(|&(_, s)| s);
+            angle_slots[pos] = rotation_slots.iter().find(|(a, _)| a == axis).map(|&(_, s)| s);
         }
-        decoders.push(Decoder {
-            positions,
-            order,
-            angle_slots,
-        });
+        decoders.push(Decoder { positions, order, angle_slots });
         joints.push(Joint {
             name,
             parent: d.parent,
@@ -407,26 +339,15 @@ fn build_skeleton(declared: &[Declared], mm: f64) -> Result<(Skeleton, Vec<Decod
 
 /// Parses `key: value` header lines of the MOTION section (`Frames:`, `Frame Time:`).
 fn header_value<'a>(line_text: &'a str, line: usize, key: &str) -> Result<&'a str> {
-    let (k, v) = line_text.split_once(':').ok_or_else(|| {
-        Error::text(
-            FORMAT,
-            line,
-            format!("expected \"{key}:\", found {:?}", line_text.trim()),
-        )
-    })?;
+    let (k, v) = line_text
+        .split_once(':')
+        .ok_or_else(|| Error::text(FORMAT, line, format!("expected \"{key}:\", found {:?}", line_text.trim())))?;
     let normalized: Vec<&str> = k.split_whitespace().collect();
     let wanted: Vec<&str> = key.split_whitespace().collect();
-    let same = normalized.len() == wanted.len()
-        && normalized
-            .iter()
-            .zip(&wanted)
-            .all(|(a, b)| a.eq_ignore_ascii_case(b));
+    let same =
+        normalized.len() == wanted.len() && normalized.iter().zip(&wanted).all(|(a, b)| a.eq_ignore_ascii_case(b));
     if !same {
-        return Err(Error::text(
-            FORMAT,
-            line,
-            format!("expected \"{key}:\", found {:?}", line_text.trim()),
-        ));
+        return Err(Error::text(FORMAT, line, format!("expected \"{key}:\", found {:?}", line_text.trim())));
     }
     Ok(v.trim())
 }
@@ -441,29 +362,19 @@ pub fn read_bvh(text: &str, unit: LengthUnit) -> Result<Motion> {
     for (number, line_text) in lines.by_ref() {
         last_line = number;
         let mut toks = tokens_of(line_text, number).peekable();
-        if toks
-            .peek()
-            .is_some_and(|t| t.text.eq_ignore_ascii_case("MOTION"))
-        {
+        if toks.peek().is_some_and(|t| t.text.eq_ignore_ascii_case("MOTION")) {
             if let Some(extra) = toks.nth(1) {
-                return Err(err_at(
-                    &extra,
-                    format!("unexpected {:?} after MOTION", extra.text),
-                ));
+                return Err(err_at(&extra, format!("unexpected {:?} after MOTION", extra.text)));
             }
             motion_line = Some(number);
             break;
         }
         hierarchy_tokens.extend(toks);
     }
-    let mut cursor = Cursor {
-        tokens: hierarchy_tokens,
-        at: 0,
-        end_line: last_line,
-    };
+    let mut cursor = Cursor { tokens: hierarchy_tokens, at: 0, end_line: last_line };
     let declared = parse_hierarchy(&mut cursor)?;
-    let motion_line = motion_line
-        .ok_or_else(|| Error::text(FORMAT, last_line, "file ends before the MOTION section"))?;
+    let motion_line =
+        motion_line.ok_or_else(|| Error::text(FORMAT, last_line, "file ends before the MOTION section"))?;
     let (skeleton, decoders) = build_skeleton(&declared, mm)?;
     let channel_count: usize = declared.iter().map(|d| d.channels.len()).sum();
 
@@ -476,21 +387,13 @@ pub fn read_bvh(text: &str, unit: LengthUnit) -> Result<Motion> {
                 return Ok((number, line_text));
             }
         }
-        Err(Error::text(
-            FORMAT,
-            end,
-            format!("file ends where {what} was expected"),
-        ))
+        Err(Error::text(FORMAT, end, format!("file ends where {what} was expected")))
     };
     let (frames_line, frames_text) = next_nonblank("\"Frames:\"")?;
     let frames_value = header_value(frames_text, frames_line, "Frames")?;
-    let frames: usize = frames_value.parse().map_err(|_| {
-        Error::text(
-            FORMAT,
-            frames_line,
-            format!("expected a frame count, found {frames_value:?}"),
-        )
-    })?;
+    let frames: usize = frames_value
+        .parse()
+        .map_err(|_| Error::text(FORMAT, frames_line, format!("expected a frame count, found {frames_value:?}")))?;
     let (time_line, time_text) = next_nonblank("\"Frame Time:\"")?;
     let time_value = header_value(time_text, time_line, "Frame Time")?;
     let frame_time: f64 = match time_value.parse::<f64>() {
@@ -505,11 +408,7 @@ pub fn read_bvh(text: &str, unit: LengthUnit) -> Result<Motion> {
     };
     let frame_rate_hz = 1.0 / frame_time;
     if !frame_rate_hz.is_finite() {
-        return Err(Error::text(
-            FORMAT,
-            time_line,
-            format!("frame time {frame_time} is too small"),
-        ));
+        return Err(Error::text(FORMAT, time_line, format!("frame time {frame_time} is too small")));
     }
 
     let joints = skeleton.len();
@@ -517,11 +416,7 @@ pub fn read_bvh(text: &str, unit: LengthUnit) -> Result<Motion> {
     // must not make us reserve gigabytes.
     let mut rotations: Vec<Quat> = Vec::with_capacity(frames.min(100_000) * joints);
     let mut root_positions: Vec<Vec3> = Vec::with_capacity(frames.min(100_000));
-    let root_offset = skeleton
-        .joints()
-        .first()
-        .map(|j| j.offset_mm)
-        .unwrap_or_else(Vec3::zeros);
+    let root_offset = skeleton.joints().first().map(|j| j.offset_mm).unwrap_or_else(Vec3::zeros);
     let mut values = Vec::with_capacity(channel_count);
     let mut end_line = time_line;
     for (number, line_text) in lines {
@@ -564,11 +459,7 @@ pub fn read_bvh(text: &str, unit: LengthUnit) -> Result<Motion> {
             }
             rotations.push(dec.order.to_quat_deg(angles));
             if index == 0 {
-                let mut p = if dec.positions.is_empty() {
-                    root_offset
-                } else {
-                    Vec3::zeros()
-                };
+                let mut p = if dec.positions.is_empty() { root_offset } else { Vec3::zeros() };
                 for &(axis, s) in &dec.positions {
                     p[axis] = values.get(s).copied().unwrap_or(0.0) * mm;
                 }
@@ -580,18 +471,10 @@ pub fn read_bvh(text: &str, unit: LengthUnit) -> Result<Motion> {
         return Err(Error::text(
             FORMAT,
             end_line,
-            format!(
-                "file ends after {} motion lines, but \"Frames:\" declares {frames}",
-                root_positions.len()
-            ),
+            format!("file ends after {} motion lines, but \"Frames:\" declares {frames}", root_positions.len()),
         ));
     }
-    Ok(Motion::new(
-        skeleton,
-        rotations,
-        root_positions,
-        frame_rate_hz,
-    )?)
+    Ok(Motion::new(skeleton, rotations, root_positions, frame_rate_hz)?)
 }
 
 fn number_value(tok: &Token<'_>) -> Result<f64> {
@@ -606,11 +489,7 @@ pub fn read_bvh_path(path: &Path, unit: LengthUnit) -> Result<Motion> {
 
 /// Checks a value can be written and read back.
 fn finite(v: f64, what: &str) -> Result<f64> {
-    if v.is_finite() {
-        Ok(v)
-    } else {
-        Err(Error::Unwritable(format!("{what} is {v}")))
-    }
+    if v.is_finite() { Ok(v) } else { Err(Error::Unwritable(format!("{what} is {v}"))) }
 }
 
 /// Writes a motion as BVH with lengths in `unit`. Every joint keeps its own rotation order;
@@ -630,16 +509,10 @@ pub fn write_bvh(motion: &Motion, unit: LengthUnit, w: &mut dyn Write) -> Result
     }
     for (i, j) in joints.iter().enumerate() {
         if j.name.is_empty() || j.name.chars().any(char::is_whitespace) {
-            return Err(Error::Unwritable(format!(
-                "joint name {:?} is empty or has blanks",
-                j.name
-            )));
+            return Err(Error::Unwritable(format!("joint name {:?} is empty or has blanks", j.name)));
         }
         if j.is_end_site && children.get(i).is_some_and(|c| !c.is_empty()) {
-            return Err(Error::Unwritable(format!(
-                "end site {:?} has children",
-                j.name
-            )));
+            return Err(Error::Unwritable(format!("end site {:?} has children", j.name)));
         }
         if i == 0 && j.is_end_site {
             return Err(Error::Unwritable("the root is an end site".into()));
@@ -664,12 +537,7 @@ pub fn write_bvh(motion: &Motion, unit: LengthUnit, w: &mut dyn Write) -> Result
             if j.is_end_site {
                 writeln!(w, "{indent}End Site")?;
             } else {
-                writeln!(
-                    w,
-                    "{indent}{} {}",
-                    if j.parent.is_none() { "ROOT" } else { "JOINT" },
-                    j.name
-                )?;
+                writeln!(w, "{indent}{} {}", if j.parent.is_none() { "ROOT" } else { "JOINT" }, j.name)?;
                 text_order.push(joint);
             }
             writeln!(w, "{indent}{{")?;
@@ -685,11 +553,7 @@ pub fn write_bvh(motion: &Motion, unit: LengthUnit, w: &mut dyn Write) -> Result
                 let axes = j.rotation_order.name().chars();
                 let rot: Vec<String> = axes.map(|c| format!("{c}rotation")).collect();
                 if j.parent.is_none() {
-                    writeln!(
-                        w,
-                        "{indent}\tCHANNELS 6 Xposition Yposition Zposition {}",
-                        rot.join(" ")
-                    )?;
+                    writeln!(w, "{indent}\tCHANNELS 6 Xposition Yposition Zposition {}", rot.join(" "))?;
                 } else {
                     writeln!(w, "{indent}\tCHANNELS 3 {}", rot.join(" "))?;
                 }
@@ -754,12 +618,7 @@ mod tests {
     #[test]
     fn reads_a_small_file() {
         let m = read_bvh(SMALL, LengthUnit::Centimetre).unwrap();
-        let names: Vec<&str> = m
-            .skeleton
-            .joints()
-            .iter()
-            .map(|j| j.name.as_str())
-            .collect();
+        let names: Vec<&str> = m.skeleton.joints().iter().map(|j| j.name.as_str()).collect();
         assert_eq!(names, ["Hips", "Spine", "Spine_End", "Fixed"]);
         assert_eq!(m.frame_count(), 2);
         assert!((m.frame_rate_hz() - 120.0).abs() < 1e-6);
@@ -794,23 +653,13 @@ mod tests {
     fn bad_values_name_line_and_column() {
         let bad = SMALL.replace("4 5 6 0", "4 5 x 0");
         match read_bvh(&bad, LengthUnit::Millimetre) {
-            Err(Error::Text {
-                line: 25,
-                column: Some(5),
-                ..
-            }) => {}
+            Err(Error::Text { line: 25, column: Some(5), .. }) => {}
             other => panic!("{other:?}"),
         }
         let short = SMALL.replace("4 5 6 0 0 0 0 90 0", "4 5 6 0 0 0 0 90");
-        assert!(matches!(
-            read_bvh(&short, LengthUnit::Millimetre),
-            Err(Error::Text { line: 25, .. })
-        ));
+        assert!(matches!(read_bvh(&short, LengthUnit::Millimetre), Err(Error::Text { line: 25, .. })));
         let nan = SMALL.replace("4 5 6 0", "4 5 NaN 0");
-        assert!(matches!(
-            read_bvh(&nan, LengthUnit::Millimetre),
-            Err(Error::Text { line: 25, .. })
-        ));
+        assert!(matches!(read_bvh(&nan, LengthUnit::Millimetre), Err(Error::Text { line: 25, .. })));
     }
 
     #[test]
@@ -829,19 +678,13 @@ mod tests {
     #[test]
     fn non_root_positions_are_unsupported() {
         let bad = SMALL.replace("CHANNELS 3 Xrotation", "CHANNELS 3 Xposition");
-        assert!(matches!(
-            read_bvh(&bad, LengthUnit::Millimetre),
-            Err(Error::Unsupported(_))
-        ));
+        assert!(matches!(read_bvh(&bad, LengthUnit::Millimetre), Err(Error::Unsupported(_))));
     }
 
     #[test]
     fn duplicate_names_are_text_errors() {
         let bad = SMALL.replace("JOINT Fixed", "JOINT Spine");
-        assert!(matches!(
-            read_bvh(&bad, LengthUnit::Millimetre),
-            Err(Error::Text { line: 15, .. })
-        ));
+        assert!(matches!(read_bvh(&bad, LengthUnit::Millimetre), Err(Error::Text { line: 15, .. })));
     }
 
     #[test]

@@ -13,10 +13,7 @@ fn data_dir() -> Option<PathBuf> {
     if dir.is_dir() {
         Some(dir)
     } else {
-        eprintln!(
-            "skipping: ../shared/data not found (looked in {})",
-            dir.display()
-        );
+        eprintln!("skipping: ../shared/data not found (looked in {})", dir.display());
         None
     }
 }
@@ -29,11 +26,7 @@ fn assert_rigid(m: &Motion, tolerance_mm: f64) {
         for (i, j) in m.skeleton.joints().iter().enumerate().skip(1) {
             let p = j.parent.unwrap();
             let len = (pose.positions_mm[i] - pose.positions_mm[p]).norm();
-            assert!(
-                (len - j.offset_mm.norm()).abs() < tolerance_mm,
-                "{} frame {frame}: {len}",
-                j.name
-            );
+            assert!((len - j.offset_mm.norm()).abs() < tolerance_mm, "{} frame {frame}: {len}", j.name);
         }
     }
 }
@@ -53,12 +46,7 @@ fn assert_same_motion(a: &Motion, b: &Motion) {
     }
     for f in 0..a.frame_count() {
         assert!((a.root_position_mm(f) - b.root_position_mm(f)).norm() < 1e-6);
-        for (j, (x, y)) in a
-            .local_rotations(f)
-            .iter()
-            .zip(b.local_rotations(f))
-            .enumerate()
-        {
+        for (j, (x, y)) in a.local_rotations(f).iter().zip(b.local_rotations(f)).enumerate() {
             if !a.skeleton.joints()[j].is_end_site {
                 assert!(x.angle_to(y) < 1e-6, "frame {f} joint {j}");
             }
@@ -77,22 +65,12 @@ fn cmu_bvh_files_read_and_round_trip() {
         }
         count += 1;
         let text = std::fs::read_to_string(&path).unwrap();
-        let declared: usize = text
-            .lines()
-            .find_map(|l| l.trim().strip_prefix("Frames:"))
-            .unwrap()
-            .trim()
-            .parse()
-            .unwrap();
+        let declared: usize =
+            text.lines().find_map(|l| l.trim().strip_prefix("Frames:")).unwrap().trim().parse().unwrap();
         let m = read_bvh_path(&path, LengthUnit::Inch).unwrap();
         assert_eq!(m.frame_count(), declared, "{}", path.display());
         assert!((m.frame_rate_hz() - 120.0).abs() < 0.01);
-        let real = m
-            .skeleton
-            .joints()
-            .iter()
-            .filter(|j| !j.is_end_site)
-            .count();
+        let real = m.skeleton.joints().iter().filter(|j| !j.is_end_site).count();
         assert_eq!(real, 31, "{}", path.display());
         assert_eq!(m.skeleton.joints()[0].rotation_order, EulerOrder::ZYX);
         assert_rigid(&m, 1e-6);
@@ -120,19 +98,12 @@ fn truncated_or_garbled_bvh_gives_line_errors() {
     let total_lines = text.split('\n').count();
     // Cut anywhere: inside the hierarchy, the header, a motion line.
     // (The last cut drops the final value of the last motion line.)
-    for cut in (0..text.len())
-        .step_by(text.len() / 40 + 1)
-        .chain(text.rfind(' '))
-    {
+    for cut in (0..text.len()).step_by(text.len() / 40 + 1).chain(text.rfind(' ')) {
         if !text.is_char_boundary(cut) {
             continue;
         }
         match read_bvh(&text[..cut], LengthUnit::Inch) {
-            Err(Error::Text {
-                format: "BVH",
-                line,
-                ..
-            }) => assert!((1..=total_lines).contains(&line)),
+            Err(Error::Text { format: "BVH", line, .. }) => assert!((1..=total_lines).contains(&line)),
             Err(other) => panic!("cut at {cut}: {other:?}"),
             Ok(_) => panic!("cut at {cut} was read as a valid file"),
         }
@@ -142,11 +113,7 @@ fn truncated_or_garbled_bvh_gives_line_errors() {
     let garbled = lines[387].replacen(' ', " 1.2.3 ", 1);
     lines[387] = &garbled;
     match read_bvh(&lines.join("\n"), LengthUnit::Inch) {
-        Err(Error::Text {
-            line: 388,
-            column: Some(_),
-            ..
-        }) => {}
+        Err(Error::Text { line: 388, column: Some(_), .. }) => {}
         other => panic!("{other:?}"),
     }
     // Arbitrary bytes never panic.
@@ -174,10 +141,7 @@ fn cmu_asf_and_amc_files_read() {
         assert_eq!(sk.len(), 38);
         let amc_path = dir.join(format!("cmu-asfamc/{subject}/{subject}_01.amc"));
         let text = std::fs::read_to_string(&amc_path).unwrap();
-        let frames = text
-            .lines()
-            .filter(|l| l.trim().parse::<u64>().is_ok())
-            .count();
+        let frames = text.lines().filter(|l| l.trim().parse::<u64>().is_ok()).count();
         let m = read_amc_path(&amc_path, &asf, 120.0).unwrap();
         assert_eq!(m.frame_count(), frames, "{subject}");
         assert_eq!(m.frame_rate_hz(), 120.0);
@@ -197,11 +161,7 @@ fn bad_amc_gives_line_errors() {
     let asf = read_asf_path(&dir.join("cmu-asfamc/01/01.asf")).unwrap();
     let text = std::fs::read_to_string(dir.join("cmu-asfamc/01/01_02.amc")).unwrap();
     let expect_line = |t: &str, want: usize| match read_amc(t, &asf, 120.0) {
-        Err(Error::Text {
-            format: "AMC",
-            line,
-            ..
-        }) => assert_eq!(line, want),
+        Err(Error::Text { format: "AMC", line, .. }) => assert_eq!(line, want),
         other => panic!("{other:?}"),
     };
     let mut lines: Vec<String> = text.split('\n').map(str::to_string).collect();
@@ -217,20 +177,11 @@ fn bad_amc_gives_line_errors() {
     expect_line(&text[..cut], line);
     // The ASF cut short, and with a bad number.
     let asf_text = std::fs::read_to_string(dir.join("cmu-asfamc/01/01.asf")).unwrap();
-    assert!(matches!(
-        read_asf(&asf_text[..asf_text.len() / 2]),
-        Err(Error::Text { .. })
-    ));
+    assert!(matches!(read_asf(&asf_text[..asf_text.len() / 2]), Err(Error::Text { .. })));
     let bad = asf_text.replacen("length 7.1578", "length 7.1.578", 1);
-    let line = asf_text[..asf_text.find("length 7.1578").unwrap()]
-        .split('\n')
-        .count();
+    let line = asf_text[..asf_text.find("length 7.1578").unwrap()].split('\n').count();
     match read_asf(&bad) {
-        Err(Error::Text {
-            format: "ASF",
-            line: l,
-            ..
-        }) => assert_eq!(l, line),
+        Err(Error::Text { format: "ASF", line: l, .. }) => assert_eq!(l, line),
         other => panic!("{other:?}"),
     }
 }
@@ -248,14 +199,8 @@ fn skeleton_strategy() -> impl Strategy<Value = Skeleton> {
             )
         })
         .prop_map(|(depths, orders, offsets, end)| {
-            const ORDERS: [EulerOrder; 6] = [
-                EulerOrder::XYZ,
-                EulerOrder::XZY,
-                EulerOrder::YXZ,
-                EulerOrder::YZX,
-                EulerOrder::ZXY,
-                EulerOrder::ZYX,
-            ];
+            const ORDERS: [EulerOrder; 6] =
+                [EulerOrder::XYZ, EulerOrder::XZY, EulerOrder::YXZ, EulerOrder::YZX, EulerOrder::ZXY, EulerOrder::ZYX];
             let n = depths.len();
             let mut path: Vec<usize> = Vec::new();
             let mut parents = Vec::with_capacity(n);
@@ -276,11 +221,7 @@ fn skeleton_strategy() -> impl Strategy<Value = Skeleton> {
                     let is_end_site = i > 0 && !has_child[i] && end[i];
                     Joint {
                         // BVH does not store end-site names; they are compared by position.
-                        name: if is_end_site {
-                            format!("e{i}")
-                        } else {
-                            format!("j{i}")
-                        },
+                        name: if is_end_site { format!("e{i}") } else { format!("j{i}") },
                         parent: parents[i],
                         offset_mm: Vec3::from(offsets[i]),
                         rotation_order: ORDERS[orders[i]],
@@ -297,10 +238,7 @@ fn motion_strategy() -> impl Strategy<Value = Motion> {
         let n = sk.len();
         (
             Just(sk),
-            proptest::collection::vec(
-                (-179.0f64..179.0, -89.0f64..89.0, -179.0f64..179.0),
-                n * frames,
-            ),
+            proptest::collection::vec((-179.0f64..179.0, -89.0f64..89.0, -179.0f64..179.0), n * frames),
             proptest::collection::vec(proptest::array::uniform3(-5000.0f64..5000.0), frames),
             Just(rate),
         )
@@ -310,20 +248,10 @@ fn motion_strategy() -> impl Strategy<Value = Motion> {
                     .enumerate()
                     .map(|(k, &(a, b, c))| {
                         let j = &sk.joints()[k % sk.len()];
-                        if j.is_end_site {
-                            Quat::identity()
-                        } else {
-                            j.rotation_order.to_quat_deg([a, b, c])
-                        }
+                        if j.is_end_site { Quat::identity() } else { j.rotation_order.to_quat_deg([a, b, c]) }
                     })
                     .collect();
-                Motion::new(
-                    sk,
-                    rotations,
-                    roots.into_iter().map(Vec3::from).collect(),
-                    rate,
-                )
-                .unwrap()
+                Motion::new(sk, rotations, roots.into_iter().map(Vec3::from).collect(), rate).unwrap()
             })
     })
 }
