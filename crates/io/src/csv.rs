@@ -50,10 +50,7 @@ pub fn write_csv(take: &Take, w: &mut dyn Write) -> Result<()> {
     for f in 0..take.frame_count() {
         line.clear();
         let frame_number = u64::from(take.first_frame) + f as u64;
-        line.push_str(&format!(
-            "{frame_number},{}",
-            frame_time_s(take.first_frame, f, rate)
-        ));
+        line.push_str(&format!("{frame_number},{}", frame_time_s(take.first_frame, f, rate)));
         for m in 0..take.marker_count() {
             match take.position_mm(f, m) {
                 Some(p) => line.push_str(&format!(",{:.4},{:.4},{:.4}", p.x, p.y, p.z)),
@@ -78,13 +75,9 @@ pub fn write_csv_path(take: &Take, path: &Path) -> Result<()> {
 pub fn read_csv(text: &str) -> Result<Take> {
     let text = text.strip_prefix('\u{feff}').unwrap_or(text);
     let mut records = parse_records(text)?.into_iter().filter(|r| !r.is_blank());
-    let header = records.next().ok_or_else(|| {
-        Error::text(
-            FORMAT,
-            1,
-            "the file is empty (expected a `frame,time_s,...` header)",
-        )
-    })?;
+    let header = records
+        .next()
+        .ok_or_else(|| Error::text(FORMAT, 1, "the file is empty (expected a `frame,time_s,...` header)"))?;
     let markers = parse_header(&header)?;
     let width = 2 + 3 * markers.len();
 
@@ -96,42 +89,30 @@ pub fn read_csv(text: &str) -> Result<Take> {
             return Err(Error::text(
                 FORMAT,
                 record.line,
-                format!(
-                    "row has {} fields but the header has {width}",
-                    record.fields.len()
-                ),
+                format!("row has {} fields but the header has {width}", record.fields.len()),
             ));
         }
         let frame_field = record.field(0)?;
-        let frame = frame_field.text.trim().parse::<u64>().map_err(|_| {
-            frame_field.error(format!(
-                "frame `{}` is not a frame number",
-                snippet(&frame_field.text)
-            ))
-        })?;
+        let frame =
+            frame_field.text.trim().parse::<u64>().map_err(|_| {
+                frame_field.error(format!("frame `{}` is not a frame number", snippet(&frame_field.text)))
+            })?;
         if let Some(&(prev, _, prev_line)) = rows.last()
             && Some(frame) != prev.checked_add(1)
         {
-            return Err(frame_field.error(format!(
-                "frame {frame} follows frame {prev} (line {prev_line}); frames must be consecutive"
-            )));
+            return Err(frame_field
+                .error(format!("frame {frame} follows frame {prev} (line {prev_line}); frames must be consecutive")));
         }
         let time_field = record.field(1)?;
         let time = match time_field.text.trim().parse::<f64>() {
             Ok(t) if t.is_finite() => t,
             _ => {
-                return Err(time_field.error(format!(
-                    "time_s `{}` is not a number",
-                    snippet(&time_field.text)
-                )));
+                return Err(time_field.error(format!("time_s `{}` is not a number", snippet(&time_field.text))));
             }
         };
         rows.push((frame, time, record.line));
         if samples.len().saturating_add(markers.len()) > crate::trc::MAX_SAMPLES {
-            return Err(Error::Limit(format!(
-                "CSV take exceeds {} samples",
-                crate::trc::MAX_SAMPLES
-            )));
+            return Err(Error::Limit(format!("CSV take exceeds {} samples", crate::trc::MAX_SAMPLES)));
         }
         for m in 0..markers.len() {
             let mut xyz = [None; 3];
@@ -159,8 +140,9 @@ pub fn read_csv(text: &str) -> Result<Take> {
 
     let rate = frame_rate(&rows, header.line)?;
     let first_frame = match rows.first() {
-        Some(&(first, _, line)) => u32::try_from(first)
-            .map_err(|_| Error::text(FORMAT, line, format!("first frame {first} is too large")))?,
+        Some(&(first, _, line)) => {
+            u32::try_from(first).map_err(|_| Error::text(FORMAT, line, format!("first frame {first} is too large")))?
+        }
         None => 1,
     };
     let mut take = Take::from_samples(markers, &samples, rate)?;
@@ -181,18 +163,10 @@ pub fn read_csv_path(path: &Path) -> Result<Take> {
 /// estimate when times were printed with few decimals.
 fn frame_rate(rows: &[(u64, f64, usize)], header_line: usize) -> Result<f64> {
     let (Some(&(_, t0, line0)), Some(&(_, t_last, line_last))) = (rows.first(), rows.last()) else {
-        return Err(Error::text(
-            FORMAT,
-            header_line,
-            "no data rows, so no frame rate",
-        ));
+        return Err(Error::text(FORMAT, header_line, "no data rows, so no frame rate"));
     };
     if rows.len() < 2 {
-        return Err(Error::text(
-            FORMAT,
-            line0,
-            "a single row does not determine the frame rate",
-        ));
+        return Err(Error::text(FORMAT, line0, "a single row does not determine the frame rate"));
     }
     let steps = || {
         rows.windows(2).filter_map(|w| match w {
@@ -257,18 +231,15 @@ fn parse_header(header: &Record) -> Result<Vec<MarkerName>> {
         for (axis, label) in AXES.iter().enumerate() {
             let field = header.field(2 + 3 * m + axis)?;
             let suffix = format!("_{label}_mm");
-            let this = field.text.strip_suffix(suffix.as_str()).ok_or_else(|| {
-                field.error(format!(
-                    "column `{}` should end in `{suffix}`",
-                    snippet(&field.text)
-                ))
-            })?;
+            let this = field
+                .text
+                .strip_suffix(suffix.as_str())
+                .ok_or_else(|| field.error(format!("column `{}` should end in `{suffix}`", snippet(&field.text))))?;
             match name {
                 Some(n) if n != this => {
-                    return Err(field.error(format!(
-                        "column `{}` does not continue marker `{n}`",
-                        snippet(&field.text)
-                    )));
+                    return Err(
+                        field.error(format!("column `{}` does not continue marker `{n}`", snippet(&field.text)))
+                    );
                 }
                 Some(_) => {}
                 None => name = Some(this.to_string()),
@@ -303,12 +274,7 @@ struct Field {
 
 impl Field {
     fn error(&self, message: String) -> Error {
-        Error::Text {
-            format: FORMAT,
-            line: self.line,
-            column: Some(self.column),
-            message,
-        }
+        Error::Text { format: FORMAT, line: self.line, column: Some(self.column), message }
     }
 }
 
@@ -319,13 +285,7 @@ impl Record {
 
     /// Field `i`, or an error on this record's line if the record is shorter.
     fn field(&self, i: usize) -> Result<&Field> {
-        self.fields.get(i).ok_or_else(|| {
-            Error::text(
-                FORMAT,
-                self.line,
-                format!("the row ends before field {}", i + 1),
-            )
-        })
+        self.fields.get(i).ok_or_else(|| Error::text(FORMAT, self.line, format!("the row ends before field {}", i + 1)))
     }
 }
 
@@ -335,16 +295,9 @@ fn parse_records(text: &str) -> Result<Vec<Record>> {
     let mut chars = text.chars().peekable();
     let (mut line, mut column) = (1usize, 1usize);
     while chars.peek().is_some() {
-        let mut record = Record {
-            line,
-            fields: Vec::new(),
-        };
+        let mut record = Record { line, fields: Vec::new() };
         loop {
-            let mut field = Field {
-                text: String::new(),
-                line,
-                column,
-            };
+            let mut field = Field { text: String::new(), line, column };
             let mut end_of_record = true;
             if chars.peek() == Some(&'"') {
                 chars.next();
@@ -434,18 +387,8 @@ mod tests {
     use super::*;
 
     fn take() -> Take {
-        let names = vec![
-            MarkerName::parse("Male:LFWT"),
-            MarkerName::parse("odd, \"name\""),
-        ];
-        let samples = [
-            Some(Vec3::new(1.0, -2.5, 3.25)),
-            None,
-            None,
-            Some(Vec3::new(4.0, 5.0, 6.0)),
-            None,
-            None,
-        ];
+        let names = vec![MarkerName::parse("Male:LFWT"), MarkerName::parse("odd, \"name\"")];
+        let samples = [Some(Vec3::new(1.0, -2.5, 3.25)), None, None, Some(Vec3::new(4.0, 5.0, 6.0)), None, None];
         let mut take = Take::from_samples(names, &samples, 120.0).unwrap();
         take.first_frame = 7;
         take
@@ -474,10 +417,7 @@ mod tests {
              \"odd, \"\"name\"\"_y_mm\",\"odd, \"\"name\"\"_z_mm\""
         );
         assert_eq!(lines.next().unwrap(), "7,0.05,1.0000,-2.5000,3.2500,,,");
-        assert_eq!(
-            lines.next().unwrap(),
-            "8,0.058333333333333334,,,,4.0000,5.0000,6.0000"
-        );
+        assert_eq!(lines.next().unwrap(), "8,0.058333333333333334,,,,4.0000,5.0000,6.0000");
     }
 
     #[test]
@@ -501,26 +441,14 @@ mod tests {
     fn bad_input_gives_line_numbers() {
         assert_eq!(line_of(read_csv("").unwrap_err()), 1);
         assert_eq!(line_of(read_csv("frame,t\n").unwrap_err()), 1);
-        assert_eq!(
-            line_of(read_csv("frame,time_s,a_x_mm,a_y_mm,b_z_mm\n").unwrap_err()),
-            1
-        );
+        assert_eq!(line_of(read_csv("frame,time_s,a_x_mm,a_y_mm,b_z_mm\n").unwrap_err()), 1);
         let base = "frame,time_s,a_x_mm,a_y_mm,a_z_mm\n1,0,1,2,3\n2,0.1,1,2,3\n";
         assert!(read_csv(base).is_ok());
-        assert_eq!(
-            line_of(read_csv(&format!("{base}3,0.2,1,2\n")).unwrap_err()),
-            4
-        );
-        assert_eq!(
-            line_of(read_csv(&format!("{base}5,0.4,1,2,3\n")).unwrap_err()),
-            4
-        );
+        assert_eq!(line_of(read_csv(&format!("{base}3,0.2,1,2\n")).unwrap_err()), 4);
+        assert_eq!(line_of(read_csv(&format!("{base}5,0.4,1,2,3\n")).unwrap_err()), 4);
         let edited = format!("{base}3,0.2,1,2,3\n4,0.38,1,2,3\n5,0.4,1,2,3\n");
         assert_eq!(line_of(read_csv(&edited).unwrap_err()), 5);
-        assert_eq!(
-            line_of(read_csv(&format!("{base}3,0.2,1,,3\n")).unwrap_err()),
-            4
-        );
+        assert_eq!(line_of(read_csv(&format!("{base}3,0.2,1,,3\n")).unwrap_err()), 4);
         assert_eq!(line_of(read_csv("frame,time_s\n1,0\n").unwrap_err()), 2);
         assert_eq!(line_of(read_csv("frame,time_s,\"a_x_mm\n").unwrap_err()), 1);
     }

@@ -109,35 +109,20 @@ pub fn read_trc_file(text: &str) -> Result<TrcFile> {
     let text = text.strip_prefix('\u{feff}').unwrap_or(text);
     // Lines keep their 1-based number for error messages; `split('\n')` plus stripping `\r`
     // handles LF and CRLF files alike.
-    let lines: Vec<(usize, &str)> = text
-        .split('\n')
-        .map(|l| l.strip_suffix('\r').unwrap_or(l))
-        .enumerate()
-        .map(|(i, l)| (i + 1, l))
-        .collect();
+    let lines: Vec<(usize, &str)> =
+        text.split('\n').map(|l| l.strip_suffix('\r').unwrap_or(l)).enumerate().map(|(i, l)| (i + 1, l)).collect();
     let line_at = |n: usize| lines.get(n - 1).map(|&(_, l)| l);
 
     // Line 1: PathFileType.
     let first = line_at(1).unwrap_or("");
     if first.trim().is_empty() {
-        return Err(Error::text(
-            FORMAT,
-            1,
-            "the file is empty (a TRC file starts with a `PathFileType` line)",
-        ));
+        return Err(Error::text(FORMAT, 1, "the file is empty (a TRC file starts with a `PathFileType` line)"));
     }
-    if !first
-        .trim_start()
-        .to_ascii_lowercase()
-        .starts_with("pathfiletype")
-    {
+    if !first.trim_start().to_ascii_lowercase().starts_with("pathfiletype") {
         return Err(Error::text(
             FORMAT,
             1,
-            format!(
-                "not a TRC file: expected `PathFileType`, found `{}`",
-                snippet(first)
-            ),
+            format!("not a TRC file: expected `PathFileType`, found `{}`", snippet(first)),
         ));
     }
 
@@ -145,10 +130,7 @@ pub fn read_trc_file(text: &str) -> Result<TrcFile> {
     let keys = match line_at(2) {
         Some(l) if !l.trim().is_empty() => tokens(l),
         _ => {
-            return Err(truncated_header(
-                2,
-                "the key line (`DataRate CameraRate NumFrames ...`)",
-            ));
+            return Err(truncated_header(2, "the key line (`DataRate CameraRate NumFrames ...`)"));
         }
     };
     let values_line = match line_at(3) {
@@ -156,11 +138,7 @@ pub fn read_trc_file(text: &str) -> Result<TrcFile> {
         _ => return Err(truncated_header(3, "the header values line")),
     };
     let values = tokens(values_line);
-    let header = Header {
-        keys: &keys,
-        values: &values,
-        line: values_line,
-    };
+    let header = Header { keys: &keys, values: &values, line: values_line };
 
     let rate_text = header.required("DataRate")?;
     let frame_rate_hz = match rate_text.1.parse::<f64>() {
@@ -176,12 +154,7 @@ pub fn read_trc_file(text: &str) -> Result<TrcFile> {
     };
     let unit_text = header.required("Units")?;
     let unit = LengthUnit::parse(unit_text.1).ok_or_else(|| {
-        at(
-            3,
-            unit_text.0,
-            values_line,
-            format!("unknown Units `{}` (expected mm, cm or m)", unit_text.1),
-        )
+        at(3, unit_text.0, values_line, format!("unknown Units `{}` (expected mm, cm or m)", unit_text.1))
     })?;
     let declared_frames = header.count("NumFrames")?;
     let declared_markers = header.count("NumMarkers")?;
@@ -199,10 +172,7 @@ pub fn read_trc_file(text: &str) -> Result<TrcFile> {
                 4,
                 0,
                 names_line,
-                format!(
-                    "expected the `Frame# Time <marker names>` line, found `{}`",
-                    snippet(names_line)
-                ),
+                format!("expected the `Frame# Time <marker names>` line, found `{}`", snippet(names_line)),
             ));
         }
     }
@@ -249,12 +219,7 @@ pub fn read_trc_file(text: &str) -> Result<TrcFile> {
             && !time.is_empty()
             && time.parse::<f64>().is_err()
         {
-            return Err(at(
-                n,
-                offset,
-                line,
-                format!("Time `{}` is not a number", snippet(time)),
-            ));
+            return Err(at(n, offset, line, format!("Time `{}` is not a number", snippet(time))));
         }
         rows.push(parse_samples(row.get(2..).unwrap_or(&[]), scale, n, line)?);
     }
@@ -274,12 +239,7 @@ pub fn read_trc_file(text: &str) -> Result<TrcFile> {
     }
 
     // Markers: named triples, then unnamed triples that hold data.
-    let triples = rows
-        .iter()
-        .map(Vec::len)
-        .max()
-        .unwrap_or(0)
-        .max(slots.len());
+    let triples = rows.iter().map(Vec::len).max().unwrap_or(0).max(slots.len());
     let mut has_data = vec![false; triples];
     for row in &rows {
         for (t, sample) in row.iter().enumerate() {
@@ -319,21 +279,13 @@ pub fn read_trc_file(text: &str) -> Result<TrcFile> {
     }
     match first_frame {
         Some(first) => {
-            take.first_frame = u32::try_from(first).map_err(|_| {
-                Error::text(
-                    FORMAT,
-                    data_start,
-                    format!("first Frame# {first} is too large"),
-                )
-            })?;
+            take.first_frame = u32::try_from(first)
+                .map_err(|_| Error::text(FORMAT, data_start, format!("first Frame# {first} is too large")))?;
         }
         // Without rows, the header's start frame is the only record of the numbering (and
         // what `write_trc` puts there), so an empty take keeps it through a round trip.
         None => {
-            if let Some(Ok(start)) = header
-                .get("OrigDataStartFrame")
-                .map(|(_, v)| v.parse::<u32>())
-            {
+            if let Some(Ok(start)) = header.get("OrigDataStartFrame").map(|(_, v)| v.parse::<u32>()) {
                 take.first_frame = start;
             }
         }
@@ -358,13 +310,7 @@ pub fn read_trc_file(text: &str) -> Result<TrcFile> {
             read_markers.saturating_sub(named.min(read_markers))
         ));
     }
-    Ok(TrcFile {
-        take,
-        unit,
-        declared_frames,
-        declared_markers,
-        notes,
-    })
+    Ok(TrcFile { take, unit, declared_frames, declared_markers, notes })
 }
 
 /// Writes `take` as TRC text with coordinates in `unit`.
@@ -375,25 +321,15 @@ pub fn write_trc(take: &Take, unit: LengthUnit, w: &mut dyn Write) -> Result<()>
 /// Writes `take` as a TRC file at `path`, atomically (see [`crate::atomic`]).
 pub fn write_trc_path(take: &Take, unit: LengthUnit, path: &Path) -> Result<()> {
     // The PathFileType line conventionally carries the file's own name.
-    let name = path
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_default();
+    let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
     write_atomically(path, |w| write_trc_named(take, unit, &name, w))
 }
 
-fn write_trc_named(
-    take: &Take,
-    unit: LengthUnit,
-    file_name: &str,
-    w: &mut dyn Write,
-) -> Result<()> {
+fn write_trc_named(take: &Take, unit: LengthUnit, file_name: &str, w: &mut dyn Write) -> Result<()> {
     let names: Vec<String> = take.markers().iter().map(MarkerName::full).collect();
     for (i, name) in names.iter().enumerate() {
         if name.is_empty() {
-            return Err(Error::Unwritable(format!(
-                "TRC: marker {i} has an empty name"
-            )));
+            return Err(Error::Unwritable(format!("TRC: marker {i} has an empty name")));
         }
         if name.contains(['\t', '\n', '\r']) {
             return Err(Error::Unwritable(format!(
@@ -402,25 +338,16 @@ fn write_trc_named(
         }
     }
     // A tab or line break in the file name would break the first line; it is informational.
-    let file_name: String = file_name
-        .chars()
-        .map(|c| if c.is_control() { '_' } else { c })
-        .collect();
+    let file_name: String = file_name.chars().map(|c| if c.is_control() { '_' } else { c }).collect();
     let rate = take.frame_rate_hz();
     let frames = take.frame_count();
     let markers = take.marker_count();
     let symbol = unit.symbol();
     let first = take.first_frame;
     writeln!(w, "PathFileType\t4\t(X/Y/Z)\t{file_name}")?;
-    writeln!(
-        w,
-        "DataRate\tCameraRate\tNumFrames\tNumMarkers\tUnits\tOrigDataRate\tOrigDataStartFrame\tOrigNumFrames"
-    )?;
+    writeln!(w, "DataRate\tCameraRate\tNumFrames\tNumMarkers\tUnits\tOrigDataRate\tOrigDataStartFrame\tOrigNumFrames")?;
     // `{}` prints the shortest text that parses back to the same f64, so the rate is exact.
-    writeln!(
-        w,
-        "{rate}\t{rate}\t{frames}\t{markers}\t{symbol}\t{rate}\t{first}\t{frames}"
-    )?;
+    writeln!(w, "{rate}\t{rate}\t{frames}\t{markers}\t{symbol}\t{rate}\t{first}\t{frames}")?;
     let mut line = String::from("Frame#\tTime");
     for name in &names {
         line.push('\t');
@@ -440,21 +367,12 @@ fn write_trc_named(
     for f in 0..frames {
         line.clear();
         let frame_number = u64::from(first) + f as u64;
-        line.push_str(&format!(
-            "{frame_number}\t{:.6}",
-            frame_time_s(first, f, rate)
-        ));
+        line.push_str(&format!("{frame_number}\t{:.6}", frame_time_s(first, f, rate)));
         for m in 0..markers {
             match take.position_mm(f, m) {
                 Some(p) => {
                     let p = p * scale;
-                    line.push_str(&format!(
-                        "\t{:.d$}\t{:.d$}\t{:.d$}",
-                        p.x,
-                        p.y,
-                        p.z,
-                        d = decimals
-                    ));
+                    line.push_str(&format!("\t{:.d$}\t{:.d$}\t{:.d$}", p.x, p.y, p.z, d = decimals));
                 }
                 None => line.push_str("\t\t\t"),
             }
@@ -486,11 +404,7 @@ fn decimals_for(unit: LengthUnit) -> usize {
 /// an error message for text that is not a finite number.
 pub(crate) fn parse_coordinate(text: &str) -> std::result::Result<Option<f64>, String> {
     let text = text.trim();
-    if text.is_empty()
-        || text
-            .trim_start_matches(['+', '-'])
-            .eq_ignore_ascii_case("nan")
-    {
+    if text.is_empty() || text.trim_start_matches(['+', '-']).eq_ignore_ascii_case("nan") {
         return Ok(None);
     }
     match text.parse::<f64>() {
@@ -513,33 +427,17 @@ pub(crate) fn combine_xyz(xyz: [Option<f64>; 3]) -> std::result::Result<Option<V
 
 /// Parses the coordinate fields of one row (after Frame# and Time), scaled to millimetres.
 /// Trailing missing samples are dropped, since absent and missing mean the same.
-fn parse_samples(
-    cells: &[(usize, &str)],
-    scale: f64,
-    n: usize,
-    line: &str,
-) -> Result<Vec<Option<Vec3>>> {
+fn parse_samples(cells: &[(usize, &str)], scale: f64, n: usize, line: &str) -> Result<Vec<Option<Vec3>>> {
     let mut samples = Vec::with_capacity(cells.len().div_ceil(3));
     for (t, triple) in cells.chunks(3).enumerate() {
         let mut xyz = [None; 3];
         for (axis, &(offset, text)) in triple.iter().enumerate() {
-            let value = parse_coordinate(text).map_err(|msg| {
-                at(
-                    n,
-                    offset,
-                    line,
-                    format!("{} of marker column {}: {msg}", AXES[axis % 3], t + 1),
-                )
-            })?;
+            let value = parse_coordinate(text)
+                .map_err(|msg| at(n, offset, line, format!("{} of marker column {}: {msg}", AXES[axis % 3], t + 1)))?;
             if let (Some(v), Some(slot)) = (value, xyz.get_mut(axis)) {
                 let mm = v * scale;
                 if !mm.is_finite() {
-                    return Err(at(
-                        n,
-                        offset,
-                        line,
-                        format!("coordinate `{}` is too large", snippet(text)),
-                    ));
+                    return Err(at(n, offset, line, format!("coordinate `{}` is too large", snippet(text))));
                 }
                 *slot = Some(mm);
             }
@@ -574,13 +472,8 @@ const AXES: [&str; 3] = ["X", "Y", "Z"];
 /// writers put the names one per column. Names all at multiples of three are read by
 /// position (so an unnamed triple between named ones stays unnamed); otherwise in order.
 fn name_slots(fields: &[(usize, &str)]) -> Vec<Option<String>> {
-    let names: Vec<(usize, &str)> = fields
-        .iter()
-        .skip(2)
-        .enumerate()
-        .filter(|(_, (_, f))| !f.is_empty())
-        .map(|(i, (_, f))| (i, *f))
-        .collect();
+    let names: Vec<(usize, &str)> =
+        fields.iter().skip(2).enumerate().filter(|(_, (_, f))| !f.is_empty()).map(|(i, (_, f))| (i, *f)).collect();
     let aligned = names.iter().all(|(i, _)| i % 3 == 0);
     let mut slots: Vec<Option<String>> = Vec::new();
     for (order, (i, name)) in names.iter().enumerate() {
@@ -605,20 +498,13 @@ struct Header<'a> {
 impl Header<'_> {
     /// The value (byte offset, text) under `key`, if the key and its value are present.
     fn get(&self, key: &str) -> Option<(usize, &str)> {
-        let i = self
-            .keys
-            .iter()
-            .position(|(_, k)| k.eq_ignore_ascii_case(key))?;
+        let i = self.keys.iter().position(|(_, k)| k.eq_ignore_ascii_case(key))?;
         self.values.get(i).copied()
     }
 
     fn required(&self, key: &str) -> Result<(usize, &str)> {
         self.get(key).ok_or_else(|| {
-            let line = if self.keys.iter().any(|(_, k)| k.eq_ignore_ascii_case(key)) {
-                3
-            } else {
-                2
-            };
+            let line = if self.keys.iter().any(|(_, k)| k.eq_ignore_ascii_case(key)) { 3 } else { 2 };
             Error::text(FORMAT, line, format!("the header has no {key} value"))
         })
     }
@@ -627,14 +513,10 @@ impl Header<'_> {
     fn count(&self, key: &str) -> Result<Option<usize>> {
         match self.get(key) {
             None => Ok(None),
-            Some((offset, text)) => text.parse::<usize>().map(Some).map_err(|_| {
-                at(
-                    3,
-                    offset,
-                    self.line,
-                    format!("{key} `{}` is not a count", snippet(text)),
-                )
-            }),
+            Some((offset, text)) => text
+                .parse::<usize>()
+                .map(Some)
+                .map_err(|_| at(3, offset, self.line, format!("{key} `{}` is not a count", snippet(text)))),
         }
     }
 }
@@ -687,32 +569,18 @@ fn parse_frame_number(field: Option<(usize, &str)>, n: usize, line: &str) -> Res
     // Some writers print frame numbers as floats (`12.0`).
     match text.parse::<f64>() {
         Ok(v) if v.fract() == 0.0 && (0.0..=u32::MAX as f64).contains(&v) => Ok(v as u64),
-        _ => Err(at(
-            n,
-            offset,
-            line,
-            format!("Frame# `{}` is not a frame number", snippet(text)),
-        )),
+        _ => Err(at(n, offset, line, format!("Frame# `{}` is not a frame number", snippet(text)))),
     }
 }
 
 fn truncated_header(line: usize, what: &str) -> Error {
-    Error::text(
-        FORMAT,
-        line,
-        format!("the header is incomplete: expected {what} here"),
-    )
+    Error::text(FORMAT, line, format!("the header is incomplete: expected {what} here"))
 }
 
 /// A text error at byte `offset` of `line_text`, with its 1-based character column.
 fn at(line: usize, offset: usize, line_text: &str, message: String) -> Error {
     let column = line_text.get(..offset).map_or(1, |s| s.chars().count() + 1);
-    Error::Text {
-        format: FORMAT,
-        line,
-        column: Some(column),
-        message,
-    }
+    Error::Text { format: FORMAT, line, column: Some(column), message }
 }
 
 /// At most 40 characters of `text`, for messages.
@@ -758,11 +626,7 @@ mod tests {
         assert!((p - Vec3::new(1.0, 2.0, 3.0)).norm() < 1e-9);
         assert_eq!(take.position_mm(1, 0), None);
         assert!(file.notes.is_empty());
-        assert_eq!(
-            take.position_mm(2, 1),
-            None,
-            "short row: trailing markers missing"
-        );
+        assert_eq!(take.position_mm(2, 1), None, "short row: trailing markers missing");
     }
 
     #[test]
@@ -810,40 +674,27 @@ mod tests {
 
     #[test]
     fn unnamed_columns_with_data_become_unlabeled_markers() {
-        let text = SMALL.replace(
-            "12\t0.11\t0.004\t0.005\t0.006",
-            "12\t0.11\t\t\t\t\t\t\t\t\t\t7\t8\t9\t\t",
-        );
+        let text = SMALL.replace("12\t0.11\t0.004\t0.005\t0.006", "12\t0.11\t\t\t\t\t\t\t\t\t\t7\t8\t9\t\t");
         let file = read_trc_file(&text).unwrap();
         let names: Vec<String> = file.take.markers().iter().map(MarkerName::full).collect();
         assert_eq!(names, ["S:A", "B", "*4"]);
         assert!(file.take.markers()[2].is_unlabeled());
-        assert_eq!(
-            file.take.position_mm(2, 2),
-            Some(Vec3::new(7000.0, 8000.0, 9000.0))
-        );
+        assert_eq!(file.take.position_mm(2, 2), Some(Vec3::new(7000.0, 8000.0, 9000.0)));
         assert_eq!(file.notes.len(), 1, "NumMarkers 2 but 3 read");
     }
 
     #[test]
     fn padded_header_values_pair_by_order() {
         // As in OpenSim's Rajagopal walk file: doubled tabs and padding in the values line.
-        let text = SMALL.replace(
-            "100\t100\t3\t2\tm\t100\t10\t3",
-            "  100.0\t\t  100.0\t\t    3\t\t     2\t\t m\t 1\t 1\t 3",
-        );
+        let text =
+            SMALL.replace("100\t100\t3\t2\tm\t100\t10\t3", "  100.0\t\t  100.0\t\t    3\t\t     2\t\t m\t 1\t 1\t 3");
         assert_eq!(read_trc(&text).unwrap().frame_rate_hz(), 100.0);
     }
 
     #[test]
     fn writes_and_reads_back() {
         let take = read_trc(SMALL).unwrap();
-        for unit in [
-            LengthUnit::Millimetre,
-            LengthUnit::Metre,
-            LengthUnit::Centimetre,
-            LengthUnit::Inch,
-        ] {
+        for unit in [LengthUnit::Millimetre, LengthUnit::Metre, LengthUnit::Centimetre, LengthUnit::Inch] {
             let mut out = Vec::new();
             write_trc(&take, unit, &mut out).unwrap();
             let back = read_trc_file(std::str::from_utf8(&out).unwrap()).unwrap();
@@ -854,9 +705,7 @@ mod tests {
             assert_eq!(back.take.validity(), take.validity());
             for f in 0..take.frame_count() {
                 for m in 0..take.marker_count() {
-                    if let (Some(a), Some(b)) =
-                        (take.position_mm(f, m), back.take.position_mm(f, m))
-                    {
+                    if let (Some(a), Some(b)) = (take.position_mm(f, m), back.take.position_mm(f, m)) {
                         assert!((a - b).norm() < 1e-4);
                     }
                 }
@@ -867,15 +716,9 @@ mod tests {
     #[test]
     fn unwritable_names_are_refused() {
         let take = Take::empty(vec![MarkerName::parse("a\tb")], 1, 60.0).unwrap();
-        assert!(matches!(
-            write_trc(&take, LengthUnit::Millimetre, &mut Vec::new()),
-            Err(Error::Unwritable(_))
-        ));
+        assert!(matches!(write_trc(&take, LengthUnit::Millimetre, &mut Vec::new()), Err(Error::Unwritable(_))));
         let take = Take::empty(vec![MarkerName::parse("")], 1, 60.0).unwrap();
-        assert!(matches!(
-            write_trc(&take, LengthUnit::Millimetre, &mut Vec::new()),
-            Err(Error::Unwritable(_))
-        ));
+        assert!(matches!(write_trc(&take, LengthUnit::Millimetre, &mut Vec::new()), Err(Error::Unwritable(_))));
     }
 
     #[test]

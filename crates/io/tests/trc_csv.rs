@@ -3,9 +3,7 @@
 use locap_core::{LengthUnit, MarkerName, Take, Vec3};
 use locap_io::Error;
 use locap_io::csv::{read_csv, write_csv, write_csv_path};
-use locap_io::trc::{
-    read_trc, read_trc_file, read_trc_file_path, read_trc_path, write_trc, write_trc_path,
-};
+use locap_io::trc::{read_trc, read_trc_file, read_trc_file_path, read_trc_path, write_trc, write_trc_path};
 use proptest::prelude::*;
 use std::path::{Path, PathBuf};
 
@@ -29,15 +27,8 @@ fn trc_files(dir: &Path) -> Vec<(String, PathBuf)> {
             let path = entry.unwrap().path();
             if path.is_dir() {
                 stack.push(path);
-            } else if path
-                .extension()
-                .is_some_and(|e| e.eq_ignore_ascii_case("trc"))
-            {
-                let rel = path
-                    .strip_prefix(dir)
-                    .unwrap()
-                    .to_string_lossy()
-                    .replace('\\', "/");
+            } else if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("trc")) {
+                let rel = path.strip_prefix(dir).unwrap().to_string_lossy().replace('\\', "/");
                 out.push((rel, path));
             }
         }
@@ -48,23 +39,13 @@ fn trc_files(dir: &Path) -> Vec<(String, PathBuf)> {
 
 /// What each real file must give: (markers, frames, first frame, rate) or the error line.
 enum Expect {
-    Take {
-        markers: usize,
-        frames: usize,
-        first_frame: u32,
-        rate: f64,
-    },
+    Take { markers: usize, frames: usize, first_frame: u32, rate: f64 },
     ErrorAtLine(usize),
 }
 
 fn expected(name: &str) -> Option<Expect> {
     use Expect::*;
-    let take = |markers, frames, first_frame, rate| Take {
-        markers,
-        frames,
-        first_frame,
-        rate,
-    };
+    let take = |markers, frames, first_frame, rate| Take { markers, frames, first_frame, rate };
     Some(match name {
         // NumMarkers 0 and no names at all: every data column is an unlabeled marker.
         "10002-20130626160334-Unnamed.trc" => take(10, 882, 1, 400.0),
@@ -93,9 +74,7 @@ fn expected(name: &str) -> Option<Expect> {
         "SprintMotion.trc" => take(59, 788, 1, 250.0),
         // Two header lines only.
         "Truncated.trc" => ErrorAtLine(3),
-        "Tutorials_Computed_Muscle_Control_InverseKinematics_arm26_elbow_flex.trc" => {
-            take(3, 121, 1, 120.0)
-        }
+        "Tutorials_Computed_Muscle_Control_InverseKinematics_arm26_elbow_flex.trc" => take(3, 121, 1, 120.0),
         // 34 names plus 2 unnamed columns with data.
         "UpperLimbStatic.trc" => take(36, 146, 1, 100.0),
         _ => return None,
@@ -106,11 +85,7 @@ fn expected(name: &str) -> Option<Expect> {
 fn every_real_trc_reads_or_fails_with_a_line() {
     let Some(dir) = data_dir() else { return };
     let files = trc_files(&dir);
-    assert!(
-        files.len() >= 20,
-        "expected the shared TRC set, found {}",
-        files.len()
-    );
+    assert!(files.len() >= 20, "expected the shared TRC set, found {}", files.len());
     for (name, path) in &files {
         let result = read_trc_file_path(path);
         match &result {
@@ -129,15 +104,7 @@ fn every_real_trc_reads_or_fails_with_a_line() {
         match (expected(name), result) {
             (None, Ok(_)) => println!("  (no expectation recorded for {name})"),
             (None, Err(e)) => panic!("{name}: unexpected error {e}"),
-            (
-                Some(Expect::Take {
-                    markers,
-                    frames,
-                    first_frame,
-                    rate,
-                }),
-                Ok(file),
-            ) => {
+            (Some(Expect::Take { markers, frames, first_frame, rate }), Ok(file)) => {
                 let take = &file.take;
                 assert_eq!(take.marker_count(), markers, "{name} markers");
                 assert_eq!(take.frame_count(), frames, "{name} frames");
@@ -149,29 +116,16 @@ fn every_real_trc_reads_or_fails_with_a_line() {
                 if file.declared_markers == Some(markers) {
                     assert!(file.notes.is_empty(), "{name}: {:?}", file.notes);
                 } else {
-                    assert_eq!(
-                        file.notes.len(),
-                        1,
-                        "{name}: the NumMarkers mismatch is reported"
-                    );
+                    assert_eq!(file.notes.len(), 1, "{name}: the NumMarkers mismatch is reported");
                 }
-                assert!(
-                    take.missing_count() < take.validity().len() || frames == 0,
-                    "{name} has data"
-                );
+                assert!(take.missing_count() < take.validity().len() || frames == 0, "{name} has data");
             }
             (Some(Expect::ErrorAtLine(line)), Err(e)) => {
                 // Path-level errors name the file, and inside it the line.
-                let Error::InFile { path: p, source } = e else {
-                    panic!("{name}: error without file")
-                };
+                let Error::InFile { path: p, source } = e else { panic!("{name}: error without file") };
                 assert_eq!(&p, path);
                 match *source {
-                    Error::Text {
-                        format: "TRC",
-                        line: l,
-                        ..
-                    } => assert_eq!(l, line, "{name} error line"),
+                    Error::Text { format: "TRC", line: l, .. } => assert_eq!(l, line, "{name} error line"),
                     other => panic!("{name}: expected a TRC line error, got {other}"),
                 }
             }
@@ -191,10 +145,7 @@ fn assert_same_samples(a: &Take, b: &Take, tolerance_mm: f64, what: &str) {
     for f in 0..a.frame_count() {
         for m in 0..a.marker_count() {
             if let (Some(p), Some(q)) = (a.position_mm(f, m), b.position_mm(f, m)) {
-                assert!(
-                    (p - q).amax() <= tolerance_mm,
-                    "{what}: frame {f} marker {m}: {p:?} vs {q:?}"
-                );
+                assert!((p - q).amax() <= tolerance_mm, "{what}: frame {f} marker {m}: {p:?} vs {q:?}");
             }
         }
     }
@@ -223,11 +174,7 @@ fn real_files_round_trip_through_trc_and_csv() {
         let csv = tmp.path().join("out.csv");
         write_csv_path(&original, &csv).unwrap();
         let back = locap_io::csv::read_csv_path(&csv).unwrap();
-        assert_eq!(
-            back.frame_rate_hz(),
-            original.frame_rate_hz(),
-            "{name}: rate from time_s"
-        );
+        assert_eq!(back.frame_rate_hz(), original.frame_rate_hz(), "{name}: rate from time_s");
         assert_same_samples(&original, &back, 1e-4, &name);
     }
     // Only the two outputs remain: no temporary files left behind.
@@ -236,22 +183,14 @@ fn real_files_round_trip_through_trc_and_csv() {
 
 /// A random small take: names (optionally with a subject prefix), samples with random gaps.
 fn arb_take(min_frames: usize, name_chars: &'static str) -> impl Strategy<Value = Take> {
-    let name = (proptest::option::of("[A-Za-z][A-Za-z0-9]{0,4}"), name_chars).prop_map(
-        |(subject, label)| {
-            let full = match subject {
-                Some(s) => format!("{s}:{label}"),
-                None => label,
-            };
-            MarkerName::parse(&full)
-        },
-    );
-    let rate = prop_oneof![
-        Just(120.0),
-        Just(100.0),
-        Just(59.94),
-        Just(30000.0 / 1001.0),
-        0.5f64..2000.0
-    ];
+    let name = (proptest::option::of("[A-Za-z][A-Za-z0-9]{0,4}"), name_chars).prop_map(|(subject, label)| {
+        let full = match subject {
+            Some(s) => format!("{s}:{label}"),
+            None => label,
+        };
+        MarkerName::parse(&full)
+    });
+    let rate = prop_oneof![Just(120.0), Just(100.0), Just(59.94), Just(30000.0 / 1001.0), 0.5f64..2000.0];
     (1usize..5, min_frames..20usize, rate, 0u32..1000)
         .prop_flat_map(move |(markers, frames, rate, first)| {
             let sample = proptest::option::weighted(0.7, proptest::array::uniform3(-5e3f64..5e3));
@@ -263,8 +202,7 @@ fn arb_take(min_frames: usize, name_chars: &'static str) -> impl Strategy<Value 
             )
         })
         .prop_map(|(names, samples, rate, first)| {
-            let samples: Vec<Option<Vec3>> =
-                samples.into_iter().map(|s| s.map(Vec3::from)).collect();
+            let samples: Vec<Option<Vec3>> = samples.into_iter().map(|s| s.map(Vec3::from)).collect();
             let mut take = Take::from_samples(names, &samples, rate).unwrap();
             take.first_frame = first;
             take
@@ -326,9 +264,7 @@ fn sample_trc_text() -> String {
         .join("../../../shared/data/trc/Tutorials_Computed_Muscle_Control_InverseKinematics_arm26_elbow_flex.trc");
     std::fs::read_to_string(path).unwrap_or_else(|_| {
         let names = vec![MarkerName::parse("A"), MarkerName::parse("B")];
-        let samples: Vec<Option<Vec3>> = (0..40)
-            .map(|i| (i % 3 != 0).then(|| Vec3::new(i as f64, 1.0, 2.0)))
-            .collect();
+        let samples: Vec<Option<Vec3>> = (0..40).map(|i| (i % 3 != 0).then(|| Vec3::new(i as f64, 1.0, 2.0))).collect();
         let take = Take::from_samples(names, &samples, 100.0).unwrap();
         let mut out = Vec::new();
         write_trc(&take, LengthUnit::Millimetre, &mut out).unwrap();
