@@ -54,6 +54,8 @@ pub struct SampleQuality {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Take {
     markers: Vec<MarkerName>,
+    /// Kept explicitly: a take with no markers (an analog-only C3D file) still has frames.
+    frames: usize,
     positions_mm: Vec<Vec3>,
     valid: Vec<bool>,
     quality: Vec<SampleQuality>,
@@ -72,6 +74,7 @@ impl Take {
         let n = frames * markers.len();
         Ok(Take {
             markers,
+            frames,
             positions_mm: vec![Vec3::zeros(); n],
             valid: vec![false; n],
             quality: vec![SampleQuality::default(); n],
@@ -111,7 +114,7 @@ impl Take {
 
     /// Number of frames `T`.
     pub fn frame_count(&self) -> usize {
-        self.valid.len().checked_div(self.markers.len()).unwrap_or(0)
+        self.frames
     }
 
     /// Number of markers `M`.
@@ -235,6 +238,7 @@ impl Take {
         let (a, b) = (start * m, end * m);
         Take {
             markers: self.markers.clone(),
+            frames: end - start,
             positions_mm: self.positions_mm[a..b].to_vec(),
             valid: self.valid[a..b].to_vec(),
             quality: self.quality[a..b].to_vec(),

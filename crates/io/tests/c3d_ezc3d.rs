@@ -1,6 +1,6 @@
-//! Round trip through the reference reader: every C3D file with points under `../shared/data`
+//! Round trip through the reference reader: every C3D file with frames under `../shared/data`
 //! is read by locap and written back; ezc3d (PyPI) must then read the same labels, rate,
-//! point values (within the integer scale) and analog values from locap's file as from the
+//! point values (within the integer scale), analog values and rotation data from locap's file as from the
 //! original. `.ci/run` installs ezc3d into `.ci/pydeps`; elsewhere the test is skipped with a
 //! message (but fails under CI, so a broken install cannot pass silently).
 
@@ -44,7 +44,7 @@ fn reference_for(path: &Path) -> Option<PathBuf> {
 /// - MIPS: `MACsample.c3d` ("MIPS processor type not supported").
 /// - "OFFSET parameter is not an INT": `Dance.c3d`, `Dance1.c3d`, `golfswing.c3d`, `golfswing1.c3d`.
 /// - "format is not standard": `bad_parameter_section.c3d` (c3d.org's deliberately corrupt
-///   file), `BKINtechnologies.c3d`, `Facial-Sing.c3d`.
+///   file), `Facial-Sing.c3d`.
 /// - `kyowadengyo.c3d`: header 11 points, `POINT:USED` 12. ezc3d trusts `USED` and gets
 ///   mean frame-to-frame jumps of 3.7 m and analog values outside the 12-bit range; read with
 ///   the header's 11 points, the mean jump is 0.24 m and analog stays within 0..3018
@@ -60,7 +60,6 @@ fn beyond_reference(path: &Path) -> bool {
         "golfswing.c3d",
         "golfswing1.c3d",
         "bad_parameter_section.c3d",
-        "BKINtechnologies.c3d",
         "Facial-Sing.c3d",
         "kyowadengyo.c3d",
         "phasespace_sample.c3d",
@@ -80,7 +79,7 @@ fn ezc3d_reads_what_locap_writes() {
     let mut cases = Vec::new();
     for (i, path) in common::files_with_extension(&data, "c3d").iter().enumerate() {
         let Ok(file) = locap_io::c3d::read_path(path) else { continue };
-        if file.point_count == 0 || file.frames == 0 {
+        if file.frames == 0 {
             continue;
         }
         // Also exercise the take conversion: to a Take and back, as every locap command does.
@@ -101,6 +100,12 @@ fn ezc3d_reads_what_locap_writes() {
         }
         if beyond_reference(path) {
             case["beyond_reference"] = serde_json::json!(true);
+        }
+        // ezc3d rejects this BKIN file as read and as written ("format is not standard"; with
+        // ignore_bad_formatting it finds no analog data although the 20 channels fill the data
+        // section exactly); py-c3d reads both, and must read the same numbers.
+        if path.ends_with("BKINtechnologies.c3d") {
+            case["pyc3d_only"] = serde_json::json!(true);
         }
         cases.push(case);
     }

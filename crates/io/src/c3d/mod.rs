@@ -138,8 +138,20 @@ pub struct C3dFile {
     pub points: Vec<[f32; 4]>,
     /// Analog samples.
     pub analog: AnalogSamples,
+    /// Data sections of other groups (for example Theia's `ROTATION` matrices), located by
+    /// their own `GROUP:DATA_START` parameter, carried through byte for byte.
+    pub extra_sections: Vec<ExtraSection>,
     /// Things that were odd but readable (header and parameters disagreeing, ...).
     pub warnings: Vec<String>,
+}
+
+/// A data section that locap does not interpret, found through `GROUP:DATA_START`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ExtraSection {
+    /// The group whose `DATA_START` points at it.
+    pub group: String,
+    /// Its bytes, from its first block to the next section or the end of the file.
+    pub bytes: Vec<u8>,
 }
 
 /// Summary of the analog channels of a file.
@@ -379,6 +391,7 @@ impl C3dFile {
             point_count: 0,
             points: Vec::new(),
             analog: AnalogSamples::Float(Vec::new()),
+            extra_sections: Vec::new(),
             warnings: Vec::new(),
         };
         file.set_take(take)?;

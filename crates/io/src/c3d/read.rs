@@ -1,7 +1,7 @@
 //! The C3D reader: header, parameter section, data section.
 
 use super::params::{Group, ParamData, Parameter, Parameters, Record};
-use super::{AnalogSamples, C3dFile, Header, HeaderEvent, Processor, Storage, trial_field};
+use super::{AnalogSamples, C3dFile, ExtraSection, Header, HeaderEvent, Processor, Storage, trial_field};
 use crate::{Error, Result};
 use std::path::Path;
 
@@ -168,7 +168,34 @@ pub fn read_with(bytes: &[u8], options: ReadOptions) -> Result<C3dFile> {
         Storage::Int => AnalogSamples::Int(analog_int),
         Storage::Float => AnalogSamples::Float(analog_float),
     };
-    Ok(C3dFile { processor, header, parameters, storage, frames, point_count, points, analog, warnings })
+    let data_end = data_offset + frames * frame_bytes;
+    let extra_sections = extra_sections(bytes, &parameters, data_end, &mut warnings);
+    Ok(C3dFile { processor, header, parameters, storage, frames, point_count, points, analog, extra_sections, warnings })
+}
+
+/// Finds the data sections of groups other than POINT (`GROUP:DATA_START`) that lie after the
+/// point and analog data; each runs to the next such section or the end of the file.
+fn extra_sections(bytes: &[u8], params: &Parameters, data_end: usize, warnings: &mut Vec<String>) -> Vec<ExtraSection> {
+    let mut starts: Vec<(usize, String)> = params
+        .groups()
+        .filter(|g| !g.name.eq_ignore_ascii_case("POINT"))
+        .filter_map(|g| {
+            let block = params.get(&g.name, "DATA_START")?.as_i64()?;
+            let offset = (block as u16 as usize).checked_sub(1)? * BLOCK;
+            Some((offset, g.name.clone()))
+        })
+        .collect();
+    starts.sort();
+    let mut out = Vec::new();
+    for (i, (offset, group)) in starts.iter().enumerate() {
+        if *offset < data_end || *offset >= bytes.len() {
+            warnings.push(format!("{group}:DATA_START points at byte {offset}, outside the free part of the file; its data is not carried"));
+            continue;
+        }
+        let end = starts.get(i + 1).map(|(o, _)| (*o).min(bytes.len())).unwrap_or(bytes.len());
+        out.push(ExtraSection { group: group.clone(), bytes: bytes[*offset..end.max(*offset)].to_vec() });
+    }
+    out
 }
 
 /// Decides how many analog samples each 3D frame holds. Header word 3 should be the total

@@ -72,10 +72,31 @@ pub fn to_bytes(file: &C3dFile) -> Result<Vec<u8>> {
     // POINT:DATA_START depends on the parameter section's size, which does not depend on its
     // value (it is one int16), so size first, then fill in.
     update_number(&mut params, "POINT", "DATA_START", 0.0, false);
+    add_missing_analog_parameters(&mut params);
+    if !file.extra_sections.is_empty() && file.processor != super::Processor::Intel {
+        return Err(Error::Unwritable(format!(
+            "the {} file has data sections locap cannot convert to Intel ({})",
+            file.processor.name(),
+            file.extra_sections.iter().map(|e| e.group.as_str()).collect::<Vec<_>>().join(", ")
+        )));
+    }
+    for extra in &file.extra_sections {
+        update_number(&mut params, &extra.group, "DATA_START", 0.0, false);
+    }
     let param_blocks = encode_parameters(&params, 0)?.len() / BLOCK;
     let data_block = 2 + param_blocks;
-    if data_block > i16::MAX as usize {
-        return Err(Error::Unwritable("parameter section too large".into()));
+    let word = match storage {
+        Storage::Int => 2,
+        Storage::Float => 4,
+    };
+    let data_bytes = file.frames * (file.point_count * 4 + analog_per_frame) * word;
+    let mut next_block = data_block + data_bytes.div_ceil(BLOCK);
+    for extra in &file.extra_sections {
+        update_number(&mut params, &extra.group, "DATA_START", next_block as f64, false);
+        next_block += extra.bytes.len().div_ceil(BLOCK);
+    }
+    if next_block > u16::MAX as usize {
+        return Err(Error::Unwritable("data sections start past block 65535".into()));
     }
     update_number(&mut params, "POINT", "DATA_START", data_block as f64, false);
     let param_bytes = encode_parameters(&params, param_blocks)?;
@@ -84,9 +105,41 @@ pub fn to_bytes(file: &C3dFile) -> Result<Vec<u8>> {
     out.extend(encode_header(file, storage, signed_scale, data_block, first, last));
     out.extend(param_bytes);
     encode_data(file, storage, scale, &mut out)?;
-    let pad = (BLOCK - out.len() % BLOCK) % BLOCK;
-    out.resize(out.len() + pad, 0);
+    for extra in std::iter::once(&[][..]).chain(file.extra_sections.iter().map(|e| e.bytes.as_slice())) {
+        out.extend(extra);
+        let pad = (BLOCK - out.len() % BLOCK) % BLOCK;
+        out.resize(out.len() + pad, 0);
+    }
     Ok(out)
+}
+
+/// Adds `ANALOG:SCALE`, `OFFSET` and `GEN_SCALE` with the C3D defaults (1, 0, 1) when a file
+/// with analog channels lacks them (MACsample.c3d spells it `OFFSETS`). The values read do not
+/// change, and readers that require them (ezc3d crashes without `OFFSET`) can open the file.
+fn add_missing_analog_parameters(params: &mut Parameters) {
+    let channels = params.get("ANALOG", "USED").and_then(|p| p.as_i64()).unwrap_or(0);
+    if !(1..=255).contains(&channels) {
+        return;
+    }
+    let n = channels as usize;
+    if params.get("ANALOG", "GEN_SCALE").is_none() {
+        params.set("ANALOG", "GEN_SCALE", vec![], ParamData::Float(vec![1.0]));
+    }
+    if params.get("ANALOG", "SCALE").is_none() {
+        params.set("ANALOG", "SCALE", vec![n as u8], ParamData::Float(vec![1.0; n]));
+    }
+    if params.get("ANALOG", "OFFSET").is_none() {
+        params.set("ANALOG", "OFFSET", vec![n as u8], ParamData::Int(vec![0; n]));
+    }
+    // The C3D manual defines ANALOG:OFFSET as integers; some writers store whole-number floats
+    // (c3d.org sample 13), which ezc3d rejects. Storing the same whole numbers as integers
+    // changes no value.
+    if let Some(p) = params.get_mut("ANALOG", "OFFSET")
+        && let ParamData::Float(v) = &p.data
+        && v.iter().all(|x| x.fract() == 0.0 && *x >= i16::MIN as f32 && *x <= i16::MAX as f32)
+    {
+        p.data = ParamData::Int(v.iter().map(|x| *x as i16).collect());
+    }
 }
 
 fn fits_int(file: &C3dFile, scale: f32) -> bool {
