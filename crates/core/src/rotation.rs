@@ -2,9 +2,10 @@
 //!
 //! An order `ZXY` means the rotation `R = Rz(a1) * Rx(a2) * Ry(a3)` where `a1..a3` are the
 //! angles in the order the file lists them: intrinsic rotations applied left to right, the
-//! convention of BVH (channels `Zrotation Xrotation Yrotation`) and of ASF `axis ... XYZ`
-//! (where, in ASF, the *last* letter is applied first to a vector, which is the same matrix
-//! product). Only the six Tait-Bryan orders occur in capture files.
+//! convention of BVH channels (`Zrotation Xrotation Yrotation`). Acclaim ASF/AMC lists its
+//! axes the other way round (`axis a b c XYZ` applies X first to a vector, i.e. the matrix
+//! `Rz * Ry * Rx`, the `ZYX` order here); `locap_io::asf_amc` converts, as checked against the
+//! CMU markers. Only the six Tait-Bryan orders occur in capture files.
 
 use crate::Quat;
 use nalgebra::{Matrix3, Unit, Vector3};

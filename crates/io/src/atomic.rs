@@ -26,9 +26,29 @@ pub fn write_atomically(path: &Path, write: impl FnOnce(&mut dyn Write) -> Resul
         write(&mut out).map_err(|e| e.in_file(path))?;
         out.flush().map_err(|e| Error::from(e).in_file(path))?;
     }
+    // Temporary files are created private (0600); the result should look like any other
+    // file the user writes: the old file's permissions if it is being replaced, else 0644.
+    if let Some(permissions) = permissions_for(path) {
+        tmp.as_file().set_permissions(permissions).map_err(|e| Error::from(e).in_file(path))?;
+    }
     tmp.as_file().sync_all().map_err(|e| Error::from(e).in_file(path))?;
     tmp.persist(path).map_err(|e| Error::from(e.error).in_file(path))?;
     Ok(())
+}
+
+fn permissions_for(path: &Path) -> Option<std::fs::Permissions> {
+    if let Ok(meta) = std::fs::metadata(path) {
+        return Some(meta.permissions());
+    }
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt;
+        Some(std::fs::Permissions::from_mode(0o644))
+    }
+    #[cfg(not(unix))]
+    {
+        None
+    }
 }
 
 #[cfg(test)]
@@ -48,5 +68,10 @@ mod tests {
         assert_eq!(std::fs::read(&path).unwrap(), b"good");
         // No temporary file is left behind.
         assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::PermissionsExt;
+            assert_eq!(std::fs::metadata(&path).unwrap().permissions().mode() & 0o777, 0o644);
+        }
     }
 }

@@ -1,21 +1,155 @@
 //! `locap convert`: between formats, chosen from the file extensions.
+//!
+//! Marker formats (C3D, TRC, CSV) convert into each other; skeleton motion (BVH, ASF/AMC)
+//! converts to BVH. C3D to C3D keeps every parameter and the analog data (see `locap_io::c3d`),
+//! which together with `--frames` cuts a take without losing anything.
 
-use anyhow::Result;
+use crate::inputs;
+use anyhow::{Context, Result, bail};
 use clap::Parser;
-use std::path::PathBuf;
+use locap_core::{LengthUnit, Take};
+use locap_io::{asf_amc, bvh, c3d, csv, trc};
+use rayon::prelude::*;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 /// Arguments of `locap convert`.
 #[derive(Parser, Debug)]
+#[command(after_help = "Examples:\n  locap convert take.c3d take.trc\n  locap convert take.c3d cut.c3d --frames 0..1200\n  \
+                        locap convert 01_01.amc 01_01.bvh --asf 01.asf\n  locap convert takes/ out/ --to trc")]
 pub struct Args {
-    /// Input file.
-    input: PathBuf,
-    /// Output file.
-    output: PathBuf,
+    /// Input file(s) or folder(s), then the output: a file for one input, a folder (with --to) for several.
+    #[arg(required = true, num_args = 2.., value_name = "PATH")]
+    paths: Vec<PathBuf>,
+    /// Output format for batch conversion into a folder: c3d, trc, csv or bvh.
+    #[arg(long, value_name = "EXT", help_heading = "Output")]
+    to: Option<String>,
+    /// Keep only these frames, as 0-based indices `START..END` (END excluded).
+    #[arg(long, value_name = "START..END", value_parser = parse_range, help_heading = "Input")]
+    frames: Option<std::ops::Range<usize>>,
+    /// ASF skeleton for AMC input.
+    #[arg(long, value_name = "FILE", help_heading = "Input")]
+    asf: Option<PathBuf>,
+    /// Frame rate of AMC input (AMC files do not record it; CMU captures are 120 Hz).
+    #[arg(long, default_value_t = 120.0, value_name = "HZ", help_heading = "Input")]
+    amc_rate: f64,
+    /// Length unit of BVH files read or written (BVH does not record it).
+    #[arg(long, default_value = "cm", value_parser = parse_unit, value_name = "UNIT", help_heading = "Input")]
+    bvh_unit: LengthUnit,
+    /// Length unit of TRC files written.
+    #[arg(long, default_value = "mm", value_parser = parse_unit, value_name = "UNIT", help_heading = "Output")]
+    trc_unit: LengthUnit,
+}
+
+fn parse_range(text: &str) -> Result<std::ops::Range<usize>, String> {
+    let (a, b) = text.split_once("..").ok_or("expected START..END, e.g. 0..1200")?;
+    let a: usize = a.trim().parse().map_err(|_| format!("bad start {a:?}"))?;
+    let b: usize = b.trim().parse().map_err(|_| format!("bad end {b:?}"))?;
+    if a >= b {
+        return Err(format!("empty range {a}..{b}"));
+    }
+    Ok(a..b)
+}
+
+fn parse_unit(text: &str) -> Result<LengthUnit, String> {
+    LengthUnit::parse(text).ok_or_else(|| format!("unknown length unit {text:?} (mm, cm, m, in)"))
 }
 
 /// Runs `locap convert`.
 pub fn run(args: Args) -> Result<ExitCode> {
-    let _ = args;
-    anyhow::bail!("convert is not available yet")
+    let (output, inputs) = args.paths.split_last().context("need an input and an output")?;
+    let single = inputs.len() == 1 && !inputs[0].is_dir() && !output.is_dir() && args.to.is_none();
+    if single {
+        convert(&inputs[0], output, &args)?;
+        eprintln!("wrote {}", output.display());
+        return Ok(ExitCode::SUCCESS);
+    }
+    let ext = args.to.as_deref().context("converting several files needs --to c3d|trc|csv|bvh and an output folder")?;
+    let files = inputs::expand(inputs, &["c3d", "trc", "csv", "bvh", "amc"])?;
+    std::fs::create_dir_all(output).with_context(|| format!("{}: cannot create output folder", output.display()))?;
+    let failed: usize = files
+        .par_iter()
+        .map(|input| {
+            let stem = input.file_stem().unwrap_or_default();
+            let target = output.join(stem).with_extension(ext);
+            match convert(input, &target, &args) {
+                Ok(()) => 0,
+                Err(err) => {
+                    crate::report_failure(input, &err);
+                    1
+                }
+            }
+        })
+        .sum();
+    eprintln!("converted {} of {} files into {}", files.len() - failed, files.len(), output.display());
+    Ok(if failed > 0 { ExitCode::from(1) } else { ExitCode::SUCCESS })
+}
+
+fn extension(path: &Path) -> String {
+    path.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase()
+}
+
+/// What a file holds.
+enum Content {
+    /// A C3D file, kept whole so C3D output loses nothing.
+    C3d(Box<c3d::C3dFile>),
+    Markers(Take),
+    Motion(locap_core::Motion),
+}
+
+fn convert(input: &Path, output: &Path, args: &Args) -> Result<()> {
+    if input == output {
+        bail!("{}: input and output are the same file; locap never overwrites its input", input.display());
+    }
+    let content = match extension(input).as_str() {
+        "c3d" => Content::C3d(Box::new(c3d::read_path(input)?)),
+        "trc" => Content::Markers(trc::read_trc_path(input)?),
+        "csv" => Content::Markers(csv::read_csv_path(input)?),
+        "bvh" => Content::Motion(bvh::read_bvh_path(input, args.bvh_unit)?),
+        "amc" => {
+            let asf_path = args.asf.as_ref().context("AMC input needs its skeleton: --asf FILE.asf")?;
+            let asf = asf_amc::read_asf_path(asf_path)?;
+            Content::Motion(asf_amc::read_amc_path(input, &asf, args.amc_rate)?)
+        }
+        other => bail!("{}: unknown input format {other:?} (c3d, trc, csv, bvh, amc)", input.display()),
+    };
+    let content = match (content, &args.frames) {
+        (Content::C3d(mut file), Some(range)) => {
+            file.cut_frames(range.clone()).map_err(|e| e.in_file(input))?;
+            Content::C3d(file)
+        }
+        (Content::Markers(take), Some(range)) => {
+            if range.end > take.frame_count() {
+                bail!("{}: --frames {range:?} is outside the take's {} frames", input.display(), take.frame_count());
+            }
+            Content::Markers(take.slice_frames(range.clone()))
+        }
+        (Content::Motion(_), Some(_)) => bail!("--frames is not supported for skeleton motion yet"),
+        (content, None) => content,
+    };
+    let out_ext = extension(output);
+    match (content, out_ext.as_str()) {
+        (Content::C3d(file), "c3d") => c3d::write_path(&file, output)?,
+        (Content::C3d(file), _) => {
+            let take = file.to_take().map_err(|e| e.in_file(input))?;
+            write_markers(&take, output, args)?
+        }
+        (Content::Markers(take), _) => write_markers(&take, output, args)?,
+        (Content::Motion(motion), "bvh") => bvh::write_bvh_path(&motion, args.bvh_unit, output)?,
+        (Content::Motion(_), other) => {
+            bail!("{}: skeleton motion can only be written as BVH, not {other:?}", input.display())
+        }
+    }
+    Ok(())
+}
+
+fn write_markers(take: &Take, output: &Path, args: &Args) -> Result<()> {
+    match extension(output).as_str() {
+        "c3d" => c3d::write_path(&c3d::C3dFile::from_take(take)?, output)?,
+        "trc" => trc::write_trc_path(take, args.trc_unit, output)?,
+        "csv" => csv::write_csv_path(take, output)?,
+        "bvh" => bail!("{}: markers cannot be written as BVH: that needs a skeleton solver", output.display()),
+        other => bail!("{}: unknown output format {other:?} (c3d, trc, csv, bvh)", output.display()),
+    }
+    Ok(())
 }

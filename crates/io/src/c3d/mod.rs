@@ -347,6 +347,35 @@ impl C3dFile {
         Ok(())
     }
 
+    /// Keeps only frames `range` (0-based indices into the file's frames): points, analog
+    /// samples and the first-frame bookkeeping. Fails for files with extra data sections,
+    /// whose per-frame layout locap does not know.
+    pub fn cut_frames(&mut self, range: std::ops::Range<usize>) -> Result<()> {
+        if range.start >= range.end || range.end > self.frames {
+            return Err(Error::Unwritable(format!(
+                "frame range {}..{} is empty or outside the take's {} frames",
+                range.start, range.end, self.frames
+            )));
+        }
+        if !self.extra_sections.is_empty() {
+            return Err(Error::Unsupported("cutting a file with extra data sections (e.g. ROTATION)".into()));
+        }
+        let m = self.point_count;
+        self.points = self.points[range.start * m..range.end * m].to_vec();
+        let a = self.header.analog_per_frame as usize;
+        self.analog = match &self.analog {
+            AnalogSamples::Int(v) => AnalogSamples::Int(v[range.start * a..range.end * a].to_vec()),
+            AnalogSamples::Float(v) => AnalogSamples::Float(v[range.start * a..range.end * a].to_vec()),
+        };
+        let first = self.first_frame().saturating_add(range.start as u32);
+        self.frames = range.end - range.start;
+        self.header.first_frame = first.min(u16::MAX as u32) as u16;
+        if let Some(p) = self.parameters.get_mut("TRIAL", "ACTUAL_START_FIELD") {
+            set_trial_field(p, first);
+        }
+        Ok(())
+    }
+
     /// A new file holding just `take` (float storage, millimetres, no analog data), for
     /// converting other formats to C3D.
     pub fn from_take(take: &Take) -> Result<C3dFile> {
