@@ -201,7 +201,7 @@ mod tests {
             let mut rebuilt = vec![true; valid.len()];
             for g in &gaps {
                 prop_assert!(g.len > 0);
-                for f in g.start..g.end() { rebuilt[f] = false; }
+                rebuilt[g.start..g.end()].fill(false);
             }
             prop_assert_eq!(rebuilt, valid);
             for w in gaps.windows(2) { prop_assert!(w[0].end() < w[1].start); }

@@ -15,8 +15,10 @@ use std::process::ExitCode;
 
 /// Arguments of `locap convert`.
 #[derive(Parser, Debug)]
-#[command(after_help = "Examples:\n  locap convert take.c3d take.trc\n  locap convert take.c3d cut.c3d --frames 0..1200\n  \
-                        locap convert 01_01.amc 01_01.bvh --asf 01.asf\n  locap convert takes/ out/ --to trc")]
+#[command(
+    after_help = "Examples:\n  locap convert take.c3d take.trc\n  locap convert take.c3d cut.c3d --frames 0..1200\n  \
+                        locap convert 01_01.amc 01_01.bvh --asf 01.asf\n  locap convert takes/ out/ --to trc"
+)]
 pub struct Args {
     /// Input file(s) or folder(s), then the output: a file for one input, a folder (with --to) for several.
     #[arg(required = true, num_args = 2.., value_name = "PATH")]

@@ -83,12 +83,12 @@ pub fn read_with(bytes: &[u8], options: ReadOptions) -> Result<C3dFile> {
         Storage::Float => 4,
     };
     let point_count = header.point_count as usize;
-    if let Some(used) = parameters.get("POINT", "USED").and_then(|p| p.as_i64()) {
-        if used as u16 as usize != point_count {
-            warnings.push(format!(
-                "header says {point_count} points, POINT:USED says {used}; the header defines the data layout"
-            ));
-        }
+    if let Some(used) = parameters.get("POINT", "USED").and_then(|p| p.as_i64())
+        && used as u16 as usize != point_count
+    {
+        warnings.push(format!(
+            "header says {point_count} points, POINT:USED says {used}; the header defines the data layout"
+        ));
     }
     let data_block = match header.data_block {
         0 => parameters.get("POINT", "DATA_START").and_then(|p| p.as_i64()).unwrap_or(0) as u16 as usize,
@@ -170,7 +170,18 @@ pub fn read_with(bytes: &[u8], options: ReadOptions) -> Result<C3dFile> {
     };
     let data_end = data_offset + frames * frame_bytes;
     let extra_sections = extra_sections(bytes, &parameters, data_end, &mut warnings);
-    Ok(C3dFile { processor, header, parameters, storage, frames, point_count, points, analog, extra_sections, warnings })
+    Ok(C3dFile {
+        processor,
+        header,
+        parameters,
+        storage,
+        frames,
+        point_count,
+        points,
+        analog,
+        extra_sections,
+        warnings,
+    })
 }
 
 /// Finds the data sections of groups other than POINT (`GROUP:DATA_START`) that lie after the
@@ -189,7 +200,9 @@ fn extra_sections(bytes: &[u8], params: &Parameters, data_end: usize, warnings: 
     let mut out = Vec::new();
     for (i, (offset, group)) in starts.iter().enumerate() {
         if *offset < data_end || *offset >= bytes.len() {
-            warnings.push(format!("{group}:DATA_START points at byte {offset}, outside the free part of the file; its data is not carried"));
+            warnings.push(format!(
+                "{group}:DATA_START points at byte {offset}, outside the free part of the file; its data is not carried"
+            ));
             continue;
         }
         let end = starts.get(i + 1).map(|(o, _)| (*o).min(bytes.len())).unwrap_or(bytes.len());

@@ -1,0 +1,126 @@
+//! The `locap` binary as a user runs it.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn locap() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_locap"))
+}
+
+fn repo() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
+}
+
+fn shared_data() -> Option<PathBuf> {
+    let dir = repo().join("../shared/data");
+    if dir.is_dir() {
+        Some(dir)
+    } else {
+        eprintln!("skipping: ../shared/data not found (tests on real captures need it)");
+        None
+    }
+}
+
+/// The README's run command, on the take shipped in the repository.
+#[test]
+fn info_on_the_shipped_example() {
+    let out = locap().args(["info", "examples/cmu_01_01_last10s.c3d"]).current_dir(repo()).output().unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let text = String::from_utf8(out.stdout).unwrap();
+    assert!(text.contains("42 markers x 1200 frames at 120 Hz"), "{text}");
+    assert!(text.contains("RBAC "), "{text}");
+
+    let out = locap().args(["info", "--json", "examples/cmu_01_01_last10s.c3d"]).current_dir(repo()).output().unwrap();
+    let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(json["frames"], 1200);
+    assert_eq!(json["first_frame"], 1591);
+    let rbac = json["gaps"]["markers"].as_array().unwrap().iter().find(|m| m["name"] == "RBAC").unwrap();
+    assert_eq!(rbac["missing_frames"], 30);
+    assert_eq!(rbac["gap_length_histogram"][30], 1);
+}
+
+/// `info` over the whole shared data folder: every file but the empty one is described, the
+/// empty one is reported with its path and the batch goes on, exit status 1.
+#[test]
+fn info_on_every_shared_file() {
+    let Some(data) = shared_data() else { return };
+    let out = locap().args(["info", "--json"]).arg(&data).output().unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    let failures: Vec<&str> = stderr.lines().filter(|l| l.starts_with("locap: ")).collect();
+    assert_eq!(failures.len(), 3, "{stderr}");
+    assert!(failures.iter().any(|l| l.contains("Empty.c3d") && l.contains("byte 0")), "{stderr}");
+    assert!(failures.iter().any(|l| l.contains("Empty.trc") && l.contains("line")), "{stderr}");
+    assert!(failures.iter().any(|l| l.contains("Truncated.trc") && l.contains("line")), "{stderr}");
+    let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let takes = json.as_array().unwrap();
+    assert!(takes.len() >= 155, "{}", takes.len());
+    let sgi = takes.iter().find(|t| t["path"].as_str().unwrap().ends_with("sgi_real.c3d")).unwrap();
+    assert_eq!(sgi["processor"], "MIPS/SGI");
+    assert_eq!(sgi["markers"], 36);
+}
+
+/// C3D -> TRC -> C3D keeps every sample; C3D -> C3D with --frames keeps the analog data.
+#[test]
+fn convert_round_trips() {
+    let dir = tempfile::tempdir().unwrap();
+    let example = repo().join("examples/cmu_01_01_last10s.c3d");
+    let trc = dir.path().join("take.trc");
+    let back = dir.path().join("back.c3d");
+    assert!(locap().arg("convert").arg(&example).arg(&trc).status().unwrap().success());
+    assert!(locap().arg("convert").arg(&trc).arg(&back).status().unwrap().success());
+    let a = locap_io::c3d::read_path(&example).unwrap().to_take().unwrap();
+    let b = locap_io::c3d::read_path(&back).unwrap().to_take().unwrap();
+    assert_eq!(a.markers(), b.markers());
+    assert_eq!(a.validity(), b.validity());
+    assert_eq!(a.first_frame, b.first_frame);
+    for f in 0..a.frame_count() {
+        for m in 0..a.marker_count() {
+            if let (Some(p), Some(q)) = (a.position_mm(f, m), b.position_mm(f, m)) {
+                assert!((p - q).amax() < 1e-3);
+            }
+        }
+    }
+
+    let Some(data) = shared_data() else { return };
+    let with_analog = data.join("c3d-vendors/Vicon.c3d");
+    let cut = dir.path().join("cut.c3d");
+    let status = locap().arg("convert").arg(&with_analog).arg(&cut).args(["--frames", "10..60"]).status().unwrap();
+    assert!(status.success());
+    let original = locap_io::c3d::read_path(&with_analog).unwrap();
+    let cut = locap_io::c3d::read_path(&cut).unwrap();
+    assert_eq!(cut.frames, 50);
+    let per_frame = original.header.analog_per_frame as usize;
+    assert!(per_frame > 0);
+    match (&original.analog, &cut.analog) {
+        (locap_io::c3d::AnalogSamples::Float(a), locap_io::c3d::AnalogSamples::Float(b)) => {
+            assert_eq!(&a[10 * per_frame..60 * per_frame], &b[..])
+        }
+        (locap_io::c3d::AnalogSamples::Int(a), locap_io::c3d::AnalogSamples::Int(b)) => {
+            assert_eq!(&a[10 * per_frame..60 * per_frame], &b[..])
+        }
+        _ => panic!("storage changed"),
+    }
+}
+
+/// Bad input: clear message, no panic, input untouched.
+#[test]
+fn bad_input_is_reported_not_panicked() {
+    let dir = tempfile::tempdir().unwrap();
+    let junk = dir.path().join("junk.c3d");
+    std::fs::write(&junk, vec![7u8; 3000]).unwrap();
+    let out = locap().arg("info").arg(&junk).output().unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(stderr.contains("junk.c3d") && stderr.contains("byte 1"), "{stderr}");
+    assert!(!stderr.contains("panicked"), "{stderr}");
+
+    let out = locap().args(["info", "does-not-exist.c3d"]).output().unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("does-not-exist.c3d"));
+
+    let example = repo().join("examples/cmu_01_01_last10s.c3d");
+    let out = locap().arg("convert").arg(&example).arg(&example).output().unwrap();
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("never overwrites its input"));
+}
