@@ -66,3 +66,18 @@ pub fn report_failure(path: &std::path::Path, err: &anyhow::Error) {
         eprintln!("locap: {}: {text}", path.display());
     }
 }
+
+/// A progress bar over `len` takes on standard error. indicatif draws nothing when standard
+/// error is not a terminal (CI logs, render-farm jobs), and a single take needs no bar.
+pub fn progress(len: usize, what: &str) -> indicatif::ProgressBar {
+    if len < 2 {
+        return indicatif::ProgressBar::hidden();
+    }
+    let bar = indicatif::ProgressBar::new(len as u64);
+    let style = indicatif::ProgressStyle::with_template("{msg} [{bar:40}] {pos}/{len} ({eta})")
+        .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar())
+        .progress_chars("=> ");
+    bar.set_style(style);
+    bar.set_message(what.to_string());
+    bar
+}

@@ -69,9 +69,11 @@ pub fn run(args: Args) -> Result<ExitCode> {
     let ext = args.to.as_deref().context("converting several files needs --to c3d|trc|csv|bvh and an output folder")?;
     let files = inputs::expand(inputs, &["c3d", "trc", "csv", "bvh", "amc"])?;
     std::fs::create_dir_all(output).with_context(|| format!("{}: cannot create output folder", output.display()))?;
+    let bar = crate::progress(files.len(), "converting");
     let failed: usize = files
         .par_iter()
         .map(|input| {
+            let _tick = Tick(&bar);
             let stem = input.file_stem().unwrap_or_default();
             let target = output.join(stem).with_extension(ext);
             match convert(input, &target, &args) {
@@ -83,6 +85,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
             }
         })
         .sum();
+    bar.finish_and_clear();
     eprintln!("converted {} of {} files into {}", files.len() - failed, files.len(), output.display());
     Ok(if failed > 0 { ExitCode::from(1) } else { ExitCode::SUCCESS })
 }
@@ -154,4 +157,13 @@ fn write_markers(take: &Take, output: &Path, args: &Args) -> Result<()> {
         other => bail!("{}: unknown output format {other:?} (c3d, trc, csv, bvh)", output.display()),
     }
     Ok(())
+}
+
+/// Advances the progress bar when a take's job ends, however it ends.
+struct Tick<'a>(&'a indicatif::ProgressBar);
+
+impl Drop for Tick<'_> {
+    fn drop(&mut self) {
+        self.0.inc(1);
+    }
 }

@@ -51,7 +51,16 @@ pub struct TakeInfo {
 /// Runs `locap info`.
 pub fn run(args: Args) -> Result<ExitCode> {
     let files = inputs::expand(&args.files, &["c3d", "trc"])?;
-    let results: Vec<(PathBuf, Result<TakeInfo>)> = files.par_iter().map(|p| (p.clone(), describe(p))).collect();
+    let bar = crate::progress(files.len(), "reading");
+    let results: Vec<(PathBuf, Result<TakeInfo>)> = files
+        .par_iter()
+        .map(|p| {
+            let result = describe(p);
+            bar.inc(1);
+            (p.clone(), result)
+        })
+        .collect();
+    bar.finish_and_clear();
     let mut failed = 0;
     let mut infos = Vec::new();
     for (path, result) in results {
