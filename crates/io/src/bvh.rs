@@ -337,6 +337,21 @@ fn build_skeleton(declared: &[Declared], mm: f64) -> Result<(Skeleton, Vec<Decod
     Ok((Skeleton::new(joints)?, decoders))
 }
 
+/// Exporters print the frame time with few digits (CMU: `.008333`, i.e. 120.0048 Hz). When the
+/// frame time is printed with at most 7 significant digits (so it is evidently rounded), a
+/// rate within 0.005 % of a whole number of hertz is that whole number: capture systems run at
+/// whole rates, and a take's length in seconds should not drift by 4e-5 per frame. locap
+/// writes the frame time exactly, so its own files are never snapped.
+fn significant_digits(number: &str) -> usize {
+    let mantissa = number.split(['e', 'E']).next().unwrap_or("");
+    mantissa.chars().filter(|c| c.is_ascii_digit()).skip_while(|c| *c == '0').count()
+}
+
+fn snap_rate(hz: f64) -> f64 {
+    let whole = hz.round();
+    if whole > 0.0 && ((hz - whole) / whole).abs() < 5e-5 { whole } else { hz }
+}
+
 /// Parses `key: value` header lines of the MOTION section (`Frames:`, `Frame Time:`).
 fn header_value<'a>(line_text: &'a str, line: usize, key: &str) -> Result<&'a str> {
     let (k, v) = line_text
@@ -406,7 +421,8 @@ pub fn read_bvh(text: &str, unit: LengthUnit) -> Result<Motion> {
             ));
         }
     };
-    let frame_rate_hz = 1.0 / frame_time;
+    let frame_rate_hz =
+        if significant_digits(time_value) <= 7 { snap_rate(1.0 / frame_time) } else { 1.0 / frame_time };
     if !frame_rate_hz.is_finite() {
         return Err(Error::text(FORMAT, time_line, format!("frame time {frame_time} is too small")));
     }

@@ -69,7 +69,7 @@ fn cmu_bvh_files_read_and_round_trip() {
             text.lines().find_map(|l| l.trim().strip_prefix("Frames:")).unwrap().trim().parse().unwrap();
         let m = read_bvh_path(&path, LengthUnit::Inch).unwrap();
         assert_eq!(m.frame_count(), declared, "{}", path.display());
-        assert!((m.frame_rate_hz() - 120.0).abs() < 0.01);
+        assert_eq!(m.frame_rate_hz(), 120.0, "CMU .008333 s frames are 120 Hz");
         let real = m.skeleton.joints().iter().filter(|j| !j.is_end_site).count();
         assert_eq!(real, 31, "{}", path.display());
         assert_eq!(m.skeleton.joints()[0].rotation_order, EulerOrder::ZYX);

@@ -13,7 +13,8 @@ use std::process::ExitCode;
 /// Arguments of `locap info`.
 #[derive(Parser, Debug)]
 pub struct Args {
-    /// Takes to describe: C3D or TRC files, or folders searched recursively.
+    /// Files to describe: C3D, TRC or CSV takes, BVH motions, ASF skeletons, or folders searched
+    /// recursively.
     #[arg(required = true, value_name = "FILE")]
     files: Vec<PathBuf>,
     /// Print one JSON document per file (a JSON array for several files) instead of text.
@@ -50,9 +51,9 @@ pub struct TakeInfo {
 
 /// Runs `locap info`.
 pub fn run(args: Args) -> Result<ExitCode> {
-    let files = inputs::expand(&args.files, &["c3d", "trc"])?;
+    let files = inputs::expand(&args.files, &["c3d", "trc", "csv", "bvh", "asf"])?;
     let bar = crate::progress(files.len(), "reading");
-    let results: Vec<(PathBuf, Result<TakeInfo>)> = files
+    let results: Vec<(PathBuf, Result<Info>)> = files
         .par_iter()
         .map(|p| {
             let result = describe(p);
@@ -81,19 +82,100 @@ pub fn run(args: Args) -> Result<ExitCode> {
         text.push('\n');
         text
     } else {
-        infos.iter().map(format_text).collect()
+        infos
+            .iter()
+            .map(|info| match info {
+                Info::Take(take) => format_text(take),
+                Info::Motion(motion) => format_motion(motion),
+            })
+            .collect()
     };
     crate::emit(&text)?;
     Ok(if failed > 0 { ExitCode::from(1) } else { ExitCode::SUCCESS })
 }
 
+/// What `info` reports about one file: a marker take or a skeleton (with motion).
+#[derive(Serialize, Debug)]
+#[serde(untagged)]
+pub enum Info {
+    /// A marker take.
+    Take(Box<TakeInfo>),
+    /// A skeleton, with or without motion.
+    Motion(MotionInfo),
+}
+
+/// Everything `info` reports about a skeleton file.
+#[derive(Serialize, Debug)]
+pub struct MotionInfo {
+    path: String,
+    format: &'static str,
+    joints: usize,
+    end_sites: usize,
+    joint_names: Vec<String>,
+    frames: usize,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    frame_rate_hz: Option<f64>,
+    /// Largest side of the rest pose's bounding box, millimetres (height or arm span), a
+    /// quick check that the length unit is right.
+    rest_extent_mm: f64,
+}
+
+fn describe(path: &Path) -> Result<Info> {
+    let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
+    let motion_info = |format, skeleton: &locap_core::Skeleton, frames, rate| {
+        let rest = locap_core::skeleton::forward_kinematics(
+            skeleton,
+            &vec![locap_core::Quat::identity(); skeleton.len()],
+            locap_core::Vec3::zeros(),
+        );
+        let extent = (0..3)
+            .map(|axis| {
+                let values = rest.positions_mm.iter().map(|p| p[axis]);
+                let (lo, hi) = values.fold((f64::MAX, f64::MIN), |(lo, hi), v| (lo.min(v), hi.max(v)));
+                hi - lo
+            })
+            .fold(0.0, f64::max);
+        MotionInfo {
+            path: path.display().to_string(),
+            format,
+            joints: skeleton.joints().iter().filter(|j| !j.is_end_site).count(),
+            end_sites: skeleton.joints().iter().filter(|j| j.is_end_site).count(),
+            joint_names: skeleton.joints().iter().filter(|j| !j.is_end_site).map(|j| j.name.clone()).collect(),
+            frames,
+            frame_rate_hz: rate,
+            rest_extent_mm: extent,
+        }
+    };
+    match ext.as_str() {
+        "bvh" => {
+            let motion = locap_io::bvh::read_bvh_path(path, locap_core::LengthUnit::Centimetre)?;
+            Ok(Info::Motion(motion_info(
+                "BVH (cm)",
+                &motion.skeleton,
+                motion.frame_count(),
+                Some(motion.frame_rate_hz()),
+            )))
+        }
+        "asf" => {
+            let asf = locap_io::asf_amc::read_asf_path(path)?;
+            let skeleton = asf.to_skeleton(asf.mm_per_unit()).map_err(|e| e.in_file(path))?;
+            Ok(Info::Motion(motion_info("ASF", &skeleton, 0, None)))
+        }
+        _ => Ok(Info::Take(Box::new(describe_take(path)?))),
+    }
+}
+
 /// Reads one take and gathers its description.
-pub fn describe(path: &Path) -> Result<TakeInfo> {
-    if inputs::has_extension(path, &["trc"]) {
-        let take = locap_io::trc::read_trc_path(path)?;
+pub fn describe_take(path: &Path) -> Result<TakeInfo> {
+    if inputs::has_extension(path, &["trc", "csv"]) {
+        let take = if inputs::has_extension(path, &["trc"]) {
+            locap_io::trc::read_trc_path(path)?
+        } else {
+            locap_io::csv::read_csv_path(path)?
+        };
         return Ok(TakeInfo {
             path: path.display().to_string(),
-            format: "TRC",
+            format: if inputs::has_extension(path, &["trc"]) { "TRC" } else { "CSV" },
             markers: take.marker_count(),
             frames: take.frame_count(),
             frame_rate_hz: take.frame_rate_hz(),
@@ -144,6 +226,20 @@ pub fn describe(path: &Path) -> Result<TakeInfo> {
         warnings: file.warnings.clone(),
         gaps: GapStatistics::of_take(&take),
     })
+}
+
+fn format_motion(info: &MotionInfo) -> String {
+    let rate = info.frame_rate_hz.map(|r| format!(" at {r} Hz")).unwrap_or_default();
+    format!(
+        "{}\n  {} skeleton, {} joints + {} end sites, rest pose extent {:.0} mm, {} frames{rate}\n  joints: {}\n",
+        info.path,
+        info.format,
+        info.joints,
+        info.end_sites,
+        info.rest_extent_mm,
+        info.frames,
+        info.joint_names.join(" ")
+    )
 }
 
 fn format_text(info: &TakeInfo) -> String {

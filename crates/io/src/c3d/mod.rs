@@ -464,3 +464,88 @@ fn set_trial_field(p: &mut Parameter, frame: u32) {
         _ => {}
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn take() -> Take {
+        let names = vec![MarkerName::parse("Sub:A"), MarkerName::parse("B")];
+        let p = |x: f64| Some(Vec3::new(x, -2.5 * x, 1000.0 + x));
+        Take::from_samples(names, &[p(1.0), None, p(2.0), p(3.0), None, p(4.5)], 240.0).unwrap()
+    }
+
+    fn reread(file: &C3dFile) -> C3dFile {
+        let mut bytes = Vec::new();
+        write(file, &mut bytes).unwrap();
+        assert_eq!(bytes.len() % 512, 0);
+        read(&bytes).unwrap()
+    }
+
+    #[test]
+    fn float_round_trip_is_exact() {
+        let t = take();
+        let back = reread(&C3dFile::from_take(&t).unwrap());
+        assert_eq!(back.to_take().unwrap().validity(), t.validity());
+        assert_eq!(back.to_take().unwrap().markers(), t.markers());
+        assert_eq!(back.frame_rate_hz(), 240.0);
+        assert_eq!(back.to_take().unwrap().position_mm(2, 1), t.position_mm(2, 1));
+    }
+
+    #[test]
+    fn metre_files_are_converted_both_ways() {
+        let t = take();
+        let mut file = C3dFile::from_take(&t).unwrap();
+        file.parameters.set_strings("POINT", "UNITS", &["m".to_string()]);
+        file.set_take(&t).unwrap();
+        // Stored in metres...
+        assert!((file.points[0][2] - 1.001).abs() < 1e-6);
+        // ...read back in millimetres.
+        let back = reread(&file).to_take().unwrap();
+        let (a, b) = (back.position_mm(0, 0).unwrap(), t.position_mm(0, 0).unwrap());
+        assert!((a - b).amax() < 1e-3, "{a:?} vs {b:?}");
+    }
+
+    #[test]
+    fn integer_files_stay_integer_when_they_fit() {
+        let t = take();
+        let mut file = C3dFile::from_take(&t).unwrap();
+        file.storage = Storage::Int;
+        file.parameters.set("POINT", "SCALE", vec![], ParamData::Float(vec![0.1]));
+        file.set_take(&t).unwrap();
+        let back = reread(&file);
+        assert_eq!(back.storage, Storage::Int);
+        let (a, b) = (back.to_take().unwrap().position_mm(1, 1).unwrap(), t.position_mm(1, 1).unwrap());
+        assert!((a - b).amax() <= 0.05 + 1e-6);
+        // A coordinate beyond 32767 * 0.1 mm does not fit: the file becomes float, losslessly.
+        let mut far = t.clone();
+        far.set_position_mm(0, 0, Some(Vec3::new(5000.0, 0.0, 0.0))).unwrap();
+        file.set_take(&far).unwrap();
+        let back = reread(&file);
+        assert_eq!(back.storage, Storage::Float);
+        assert_eq!(back.to_take().unwrap().position_mm(0, 0), Some(Vec3::new(5000.0, 0.0, 0.0)));
+    }
+
+    #[test]
+    fn relabeling_rewrites_labels_and_keeps_other_parameters() {
+        let t = take();
+        let mut file = C3dFile::from_take(&t).unwrap();
+        file.parameters.set_strings("SUBJECTS", "NAMES", &["Sub".to_string()]);
+        let mut relabeled = t.clone();
+        relabeled.set_markers(vec![MarkerName::parse("Sub:LFWT"), MarkerName::parse("Sub:RFWT")]).unwrap();
+        file.set_take(&relabeled).unwrap();
+        let back = reread(&file);
+        assert_eq!(back.point_labels(), vec!["Sub:LFWT", "Sub:RFWT"]);
+        assert_eq!(back.parameters.get("SUBJECTS", "NAMES").unwrap().strings(), vec!["Sub"]);
+    }
+
+    #[test]
+    fn frame_count_change_with_analog_is_refused() {
+        let t = take();
+        let mut file = C3dFile::from_take(&t).unwrap();
+        file.header.analog_per_frame = 2;
+        file.analog = AnalogSamples::Float(vec![0.5; 2 * t.frame_count()]);
+        let err = file.set_take(&t.slice_frames(0..2)).unwrap_err().to_string();
+        assert!(err.contains("analog"), "{err}");
+    }
+}

@@ -64,7 +64,7 @@ pub fn to_bytes(file: &C3dFile) -> Result<Vec<u8>> {
     } else {
         update_number(&mut params, "POINT", "FRAMES", frames_value, false);
     }
-    let first = super::trial_field(&params, "ACTUAL_START_FIELD").unwrap_or(file.header.first_frame as u32).max(1);
+    let first = super::trial_field(&params, "ACTUAL_START_FIELD").unwrap_or(file.header.first_frame as u32);
     let last = first as u64 + (file.frames as u64).saturating_sub(1);
     if let Some(p) = params.get_mut("TRIAL", "ACTUAL_END_FIELD") {
         set_trial_field(p, last.min(u32::MAX as u64) as u32);
