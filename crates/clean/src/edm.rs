@@ -1,0 +1,296 @@
+//! Locality gap fill by Euclidean distance matrices (LocalMoCap section 3.1, Eq. 1-2).
+//!
+//! For a marker `i` missing over frames `[s, e]`:
+//! 1. pick its `K` best neighbours ([`crate::neighbours`]) among those visible at both gap
+//!    borders (`s-1`, `e+1`) and at the frame being filled; one fixed set for the whole gap
+//!    when enough neighbours stay visible throughout (a smooth fill), else per frame;
+//! 2. at frame `t`, interpolate the squared-distance matrix of `{i} + neighbours` linearly
+//!    between the borders, `D_t = ((e-t) D_s + (t-s) D_e) / (e-s)`; a gap touching the take's
+//!    start or end has one border and uses its matrix unchanged;
+//! 3. classical MDS (Torgerson): the top three eigenpairs of `-1/2 J D_t J` give a point set
+//!    with those distances (Eq. 2);
+//! 4. rigid Procrustes aligns the neighbours' embedded points onto their observed positions;
+//!    the marker's embedded point, carried along, is the fill. MDS fixes a point set only up
+//!    to a mirror image, so both chiralities are aligned (each with a proper rotation, the
+//!    reflection check) and the better fit wins;
+//! 5. the fill is evaluated at the border frames too, where the marker is visible, and the
+//!    difference is blended out linearly across the gap, so the trajectory has no step at
+//!    `s-1` or `e+1`.
+//!
+//! Markers whose neighbours are missing at the same time are first skipped; a second pass lets
+//! already-filled markers serve as neighbours (captured neighbours are always preferred).
+//! Fewer than 3 usable neighbours leaves the frame missing. nalgebra does the eigen
+//! decomposition; the steps around it follow the paper and are written here.
+
+use crate::Filled;
+use crate::neighbours::{self, Selection};
+use crate::procrustes;
+use locap_core::gaps::{Gap, gaps_of};
+use locap_core::{Take, Vec3};
+use nalgebra::{DMatrix, SymmetricEigen};
+
+/// Fewest neighbours that fix a rigid alignment in 3D.
+const MIN_NEIGHBOURS: usize = 3;
+
+/// Fills every gap of `take` with the EDM method using `k` neighbours ranked by `selection`.
+pub fn fill(take: &Take, k: usize, selection: Selection) -> Filled {
+    let ranked = neighbours::rank(take, selection);
+    let mut out = Filled::unchanged(take);
+    let k = k.max(MIN_NEIGHBOURS);
+    for pass in 0..2 {
+        // Pass 0 uses captured neighbours only; pass 1 also filled ones.
+        let source = if pass == 0 { take.clone() } else { out.take.clone() };
+        for marker in 0..take.marker_count() {
+            let gaps = gaps_of((0..take.frame_count()).map(|f| out.take.is_valid(f, marker)));
+            for gap in gaps {
+                fill_gap(&mut out, &source, marker, gap, &ranked[marker], k);
+            }
+        }
+    }
+    out
+}
+
+/// Fills one gap of `marker` in `out`, reading neighbours from `source`.
+fn fill_gap(out: &mut Filled, source: &Take, marker: usize, gap: Gap, ranked: &[usize], k: usize) {
+    let frames = source.frame_count();
+    let before = gap.start.checked_sub(1);
+    let after = (gap.end() < frames).then_some(gap.end());
+    if before.is_none() && after.is_none() {
+        return; // never visible: nothing to measure distances from
+    }
+    let borders: Vec<usize> = before.iter().chain(after.iter()).copied().collect();
+    let candidates: Vec<usize> =
+        ranked.iter().copied().filter(|j| borders.iter().all(|b| source.is_valid(*b, *j))).collect();
+    let fixed: Vec<usize> =
+        candidates.iter().copied().filter(|j| (gap.start..gap.end()).all(|f| source.is_valid(f, *j))).take(k).collect();
+    let choose = |t: usize| -> Vec<usize> {
+        if fixed.len() >= MIN_NEIGHBOURS {
+            fixed.clone()
+        } else {
+            candidates.iter().copied().filter(|j| source.is_valid(t, *j)).take(k).collect()
+        }
+    };
+    let Some(border_matrices) = BorderMatrices::new(out, source, marker, before, after) else { return };
+    // Offsets at the borders, blended out across the gap.
+    let offset_at = |b: usize| -> Option<Vec3> {
+        let chosen = choose(b);
+        let estimate = estimate(&border_matrices, source, marker, &chosen, b, b)?;
+        Some(estimate - out.take.position_mm(b, marker)?)
+    };
+    let offset_before = before.and_then(offset_at);
+    let offset_after = after.and_then(offset_at);
+    let m = source.marker_count();
+    for t in gap.start..gap.end() {
+        let chosen = choose(t);
+        if chosen.len() < MIN_NEIGHBOURS {
+            continue;
+        }
+        let Some(mut p) = estimate(&border_matrices, source, marker, &chosen, t, t) else { continue };
+        let w = border_matrices.weight(t);
+        p -= match (offset_before, offset_after) {
+            (Some(a), Some(b)) => a * (1.0 - w) + b * w,
+            (Some(a), None) => a,
+            (None, Some(b)) => b,
+            (None, None) => Vec3::zeros(),
+        };
+        if out.take.set_position_mm(t, marker, Some(p)).is_ok() {
+            out.filled[t * m + marker] = true;
+        }
+    }
+}
+
+/// Positions at the gap borders, from which distance matrices are built for any neighbour set.
+struct BorderMatrices {
+    before: Option<usize>,
+    after: Option<usize>,
+    /// The marker's own position at each border (captured, or filled by an earlier pass).
+    marker_before: Option<Vec3>,
+    marker_after: Option<Vec3>,
+}
+
+impl BorderMatrices {
+    fn new(out: &Filled, _source: &Take, marker: usize, before: Option<usize>, after: Option<usize>) -> Option<Self> {
+        let marker_before = before.map(|b| out.take.position_mm(b, marker)).transpose_none()?;
+        let marker_after = after.map(|b| out.take.position_mm(b, marker)).transpose_none()?;
+        Some(BorderMatrices { before, after, marker_before, marker_after })
+    }
+
+    /// Interpolation weight of the later border at frame `t` (0 at `s-1`, 1 at `e+1`).
+    fn weight(&self, t: usize) -> f64 {
+        match (self.before, self.after) {
+            (Some(b), Some(a)) if a > b => (t.saturating_sub(b)) as f64 / (a - b) as f64,
+            (None, Some(_)) => 1.0,
+            _ => 0.0,
+        }
+    }
+
+    /// Squared-distance matrix of `{marker} + chosen` at frame `t`, interpolated between the
+    /// borders.
+    fn squared_distances(&self, source: &Take, chosen: &[usize], t: usize) -> Option<DMatrix<f64>> {
+        let at = |frame: Option<usize>, own: Option<Vec3>| -> Option<DMatrix<f64>> {
+            let frame = frame?;
+            let mut points = vec![own?];
+            for j in chosen {
+                points.push(source.position_mm(frame, *j)?);
+            }
+            let n = points.len();
+            Some(DMatrix::from_fn(n, n, |a, b| (points[a] - points[b]).norm_squared()))
+        };
+        let d_before = at(self.before, self.marker_before);
+        let d_after = at(self.after, self.marker_after);
+        let w = self.weight(t);
+        match (d_before, d_after) {
+            (Some(a), Some(b)) => Some(a * (1.0 - w) + b * w),
+            (Some(a), None) => Some(a),
+            (None, Some(b)) => Some(b),
+            (None, None) => None,
+        }
+    }
+}
+
+/// Option<Option<T>> where the outer `None` means "no border" (fine) and an inner `None` means
+/// "border sample missing" (cannot fill).
+trait TransposeNone<T> {
+    fn transpose_none(self) -> Option<Option<T>>;
+}
+
+impl<T> TransposeNone<T> for Option<Option<T>> {
+    fn transpose_none(self) -> Option<Option<T>> {
+        match self {
+            None => Some(None),
+            Some(Some(v)) => Some(Some(v)),
+            Some(None) => None,
+        }
+    }
+}
+
+/// The EDM estimate of `marker` at frame `t` from the distance matrix interpolated at frame
+/// `at` and the neighbours' observed positions at `t`.
+fn estimate(
+    borders: &BorderMatrices,
+    source: &Take,
+    marker: usize,
+    chosen: &[usize],
+    t: usize,
+    at: usize,
+) -> Option<Vec3> {
+    let _ = marker;
+    if chosen.len() < MIN_NEIGHBOURS {
+        return None;
+    }
+    let d = borders.squared_distances(source, chosen, at)?;
+    let embedded = classical_mds(&d)?;
+    let observed: Vec<Vec3> = chosen.iter().map(|j| source.position_mm(t, *j)).collect::<Option<_>>()?;
+    let best = [false, true]
+        .into_iter()
+        .filter_map(|mirror| {
+            let points: Vec<Vec3> =
+                embedded.iter().map(|p| if mirror { Vec3::new(p.x, p.y, -p.z) } else { *p }).collect();
+            let transform = procrustes::align(&points[1..], &observed)?;
+            let error = procrustes::rms_error(&transform, &points[1..], &observed);
+            Some((error, transform.apply(&points[0])))
+        })
+        .min_by(|a, b| a.0.total_cmp(&b.0))?;
+    Some(best.1)
+}
+
+/// Classical (Torgerson) MDS: points in 3D whose squared distances best match `d`.
+///
+/// `B = -1/2 J D J` with the centering matrix `J = I - 11^T/n`; the coordinates are the top
+/// three eigenvectors scaled by the square roots of their eigenvalues (negative eigenvalues,
+/// from distances no 3D point set has exactly, count as zero).
+pub fn classical_mds(d: &DMatrix<f64>) -> Option<Vec<Vec3>> {
+    let n = d.nrows();
+    if n == 0 || d.ncols() != n || d.iter().any(|x| !x.is_finite()) {
+        return None;
+    }
+    let j = DMatrix::<f64>::identity(n, n) - DMatrix::from_element(n, n, 1.0 / n as f64);
+    let b = (&j * d * &j) * -0.5;
+    let eigen = SymmetricEigen::new(b);
+    let mut order: Vec<usize> = (0..n).collect();
+    order.sort_by(|a, c| eigen.eigenvalues[*c].total_cmp(&eigen.eigenvalues[*a]));
+    let mut points = vec![Vec3::zeros(); n];
+    for (axis, &k) in order.iter().take(3).enumerate() {
+        let scale = eigen.eigenvalues[k].max(0.0).sqrt();
+        for (row, p) in points.iter_mut().enumerate() {
+            p[axis] = eigen.eigenvectors[(row, k)] * scale;
+        }
+    }
+    Some(points)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use locap_core::MarkerName;
+    use proptest::prelude::*;
+
+    fn squared_distances(points: &[Vec3]) -> DMatrix<f64> {
+        let n = points.len();
+        DMatrix::from_fn(n, n, |a, b| (points[a] - points[b]).norm_squared())
+    }
+
+    proptest! {
+        /// MDS reproduces any point set's distances exactly (up to rounding).
+        #[test]
+        fn mds_is_exact_on_rigid_sets(coords in proptest::collection::vec(proptest::array::uniform3(-500.0f64..500.0), 4..9)) {
+            let points: Vec<Vec3> = coords.into_iter().map(Vec3::from).collect();
+            let embedded = classical_mds(&squared_distances(&points)).unwrap();
+            for a in 0..points.len() {
+                for b in 0..points.len() {
+                    let want = (points[a] - points[b]).norm();
+                    let got = (embedded[a] - embedded[b]).norm();
+                    prop_assert!((want - got).abs() < 1e-6 * want.max(1.0), "{want} vs {got}");
+                }
+            }
+        }
+    }
+
+    /// A rigid cluster moving and turning: any gap of one marker is recovered exactly, at
+    /// the start, in the middle and at the end of the take, whatever the mirror image MDS
+    /// returns.
+    #[test]
+    fn rigid_motion_is_filled_exactly() {
+        let offsets = [
+            Vec3::new(0.0, 0.0, 0.0),
+            Vec3::new(120.0, 10.0, 0.0),
+            Vec3::new(0.0, 90.0, 30.0),
+            Vec3::new(40.0, 40.0, 110.0),
+            Vec3::new(-70.0, 20.0, 50.0),
+        ];
+        let frames = 200;
+        let names = (0..offsets.len()).map(|i| MarkerName::parse(&format!("M{i}"))).collect();
+        let mut samples = Vec::new();
+        for f in 0..frames {
+            let a = f as f64 * 0.03;
+            let rot = nalgebra::Rotation3::from_euler_angles(0.3 * a, a, 0.5 * a.sin());
+            let base = Vec3::new(5.0 * f as f64, 100.0 * a.cos(), 900.0);
+            for o in &offsets {
+                samples.push(Some(base + rot * o));
+            }
+        }
+        let truth = Take::from_samples(names, &samples, 120.0).unwrap();
+        let mut holed = truth.clone();
+        for f in (0..15).chain(80..140).chain(185..200) {
+            holed.set_position_mm(f, 0, None).unwrap();
+        }
+        let filled = fill(&holed, 6, Selection::Variance);
+        assert_eq!(filled.filled_count(), 15 + 60 + 15);
+        for f in 0..frames {
+            let (a, b) = (filled.take.position_mm(f, 0).unwrap(), truth.position_mm(f, 0).unwrap());
+            assert!((a - b).norm() < 1e-6, "frame {f}: {a:?} vs {b:?}");
+        }
+    }
+
+    #[test]
+    fn too_few_neighbours_leave_the_gap() {
+        let names = (0..3).map(|i| MarkerName::parse(&format!("M{i}"))).collect();
+        let p = Some(Vec3::new(1.0, 2.0, 3.0));
+        let q = Some(Vec3::new(5.0, 2.0, 3.0));
+        let r = Some(Vec3::new(1.0, 9.0, 3.0));
+        let take = Take::from_samples(names, &[p, q, r, None, q, r, p, q, r], 100.0).unwrap();
+        let filled = fill(&take, 6, Selection::Variance);
+        assert_eq!(filled.filled_count(), 0);
+        assert_eq!(filled.take.position_mm(1, 0), None);
+    }
+}

