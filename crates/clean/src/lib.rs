@@ -24,7 +24,9 @@
 //! writer can mark them and a benchmark can score exactly them.
 
 pub mod edm;
+pub mod local_frame;
 pub mod neighbours;
+pub mod outliers;
 pub mod procrustes;
 
 use locap_core::Take;

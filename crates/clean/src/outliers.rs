@@ -1,0 +1,285 @@
+//! Outlier detection from acceleration peaks (LocalMoCap section 3.1: "outliers ... are
+//! defined as markers with acceleration peaks that exceed a certain threshold. We remove the
+//! marker sequence around the outlier and fill the gap with spline interpolation").
+//!
+//! Per marker, the acceleration magnitude is `|p[t+1] - 2 p[t] + p[t-1]| * rate^2` wherever
+//! three consecutive samples exist. A frame is an outlier when its acceleration is a local
+//! maximum whose *prominence* (height above the higher of the lowest points between it and
+//! the nearest higher peak on each side, searched within a window; the definition of
+//! `scipy.signal.peak_prominences`) exceeds the threshold of the marker's body region. Hand
+//! markers move faster than body markers, so each region has its own threshold
+//! ([`OutlierConfig`]). Around each outlier a window of frames is removed; overlapping
+//! windows merge. [`detect`] only reports; [`remove`] turns the windows into gaps that the
+//! caller refills (the CLI uses cubic splines, as the paper does).
+//!
+//! A "stuck" marker (exactly the same coordinates for several frames while other markers
+//! move, as some systems repeat the last sample when tracking is lost) is reported and
+//! removed too. Swapped labels between two markers are not detected here: a swap shows as two
+//! simultaneous spikes and is removed as such, but not swapped back (labeling's job).
+
+use locap_core::{Take, Vec3};
+use serde::{Deserialize, Serialize};
+use std::ops::Range;
+
+/// Settings of outlier detection.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct OutlierConfig {
+    /// Prominence threshold for body markers, m/s^2.
+    pub body_threshold_m_s2: f64,
+    /// Prominence threshold for hand markers, m/s^2.
+    pub hand_threshold_m_s2: f64,
+    /// Frames removed on each side of an outlier frame.
+    pub window_frames: usize,
+    /// Frames on each side searched for a peak's bases (the prominence window).
+    pub prominence_window_frames: usize,
+    /// Minimum run of identical samples that counts as a stuck marker.
+    pub stuck_frames: usize,
+    /// Labels of hand markers; when empty, [`is_hand_label`] decides.
+    pub hand_markers: Vec<String>,
+}
+
+impl Default for OutlierConfig {
+    /// Defaults chosen from the data: at 120 Hz a 5 mm single-frame spike already makes a
+    /// 144 m/s^2 peak, while captured body motion (CMU takes 85_02, 135_02) stays below
+    /// ~60 m/s^2 and hands below ~120 m/s^2 outside outliers.
+    fn default() -> OutlierConfig {
+        OutlierConfig {
+            body_threshold_m_s2: 150.0,
+            hand_threshold_m_s2: 300.0,
+            window_frames: 2,
+            prominence_window_frames: 30,
+            stuck_frames: 6,
+            hand_markers: Vec::new(),
+        }
+    }
+}
+
+/// Whether a marker label looks like a hand or finger marker: wrist bar (`WRA`, `WRB`, `IWR`,
+/// `OWR`), hand (`HAND`, `FIN`) and finger names (`THM`/`THUMB`, `IDX`/`INDEX`, `MID`/`MIDDLE`,
+/// `RNG`/`RING`, `PNK`/`PINKY`/`LITTLE`).
+pub fn is_hand_label(label: &str) -> bool {
+    let l = label.to_ascii_uppercase();
+    ["WRA", "WRB", "IWR", "OWR", "HAND", "FIN", "THM", "THUMB", "IDX", "INDEX", "MID", "RNG", "RING", "PNK", "PINK", "LITTLE"]
+        .iter()
+        .any(|p| l.contains(p))
+}
+
+/// Why a range of frames was removed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum OutlierKind {
+    /// An acceleration peak.
+    Spike,
+    /// Identical samples repeated.
+    Stuck,
+}
+
+/// One removed range of one marker.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Outlier {
+    /// Marker index.
+    pub marker: usize,
+    /// Frames removed (0-based, end excluded).
+    pub frames: Range<usize>,
+    /// Why.
+    pub kind: OutlierKind,
+    /// The largest acceleration prominence inside, m/s^2 (0 for stuck markers).
+    pub peak_m_s2: f64,
+}
+
+/// Acceleration magnitude per frame of one marker, m/s^2 (`None` where a neighbour frame is
+/// missing).
+pub fn acceleration_m_s2(take: &Take, marker: usize) -> Vec<Option<f64>> {
+    let t = take.frame_count();
+    let rate = take.frame_rate_hz();
+    (0..t)
+        .map(|f| {
+            if f == 0 || f + 1 >= t {
+                return None;
+            }
+            let (a, b, c) =
+                (take.position_mm(f - 1, marker)?, take.position_mm(f, marker)?, take.position_mm(f + 1, marker)?);
+            Some((a - 2.0 * b + c).norm() * rate * rate / 1000.0)
+        })
+        .collect()
+}
+
+/// Prominence of the local maximum at `i` (scipy's definition, bases searched within `wlen`
+/// frames on each side; missing values end the search).
+fn prominence(a: &[Option<f64>], i: usize, wlen: usize) -> f64 {
+    let Some(h) = a[i] else { return 0.0 };
+    let side = |range: &mut dyn Iterator<Item = usize>| -> f64 {
+        let mut lowest = h;
+        for k in range {
+            match a[k] {
+                Some(v) if v > h => break,
+                Some(v) => lowest = lowest.min(v),
+                None => break,
+            }
+        }
+        lowest
+    };
+    let left = side(&mut (i.saturating_sub(wlen)..i).rev());
+    let right = side(&mut (i + 1..(i + 1 + wlen).min(a.len())));
+    h - left.max(right)
+}
+
+/// Finds outliers in every marker.
+pub fn detect(take: &Take, config: &OutlierConfig) -> Vec<Outlier> {
+    let t = take.frame_count();
+    let mut out = Vec::new();
+    for marker in 0..take.marker_count() {
+        let label = &take.markers()[marker].label;
+        let hand = if config.hand_markers.is_empty() {
+            is_hand_label(label)
+        } else {
+            config.hand_markers.iter().any(|h| h == label)
+        };
+        let threshold = if hand { config.hand_threshold_m_s2 } else { config.body_threshold_m_s2 };
+        let acc = acceleration_m_s2(take, marker);
+        let mut windows: Vec<(Range<usize>, OutlierKind, f64)> = Vec::new();
+        for i in 0..t {
+            let Some(v) = acc[i] else { continue };
+            let is_peak = (i == 0 || acc[i - 1].is_none_or(|p| p <= v)) && (i + 1 >= t || acc[i + 1].is_none_or(|n| n < v));
+            if !is_peak || v <= threshold {
+                continue;
+            }
+            let p = prominence(&acc, i, config.prominence_window_frames);
+            if p > threshold {
+                let r = i.saturating_sub(config.window_frames)..(i + config.window_frames + 1).min(t);
+                windows.push((r, OutlierKind::Spike, p));
+            }
+        }
+        windows.extend(stuck_runs(take, marker, config.stuck_frames).into_iter().map(|r| (r, OutlierKind::Stuck, 0.0)));
+        windows.sort_by_key(|w| w.0.start);
+        for (range, kind, peak) in windows {
+            match out.last_mut() {
+                Some(Outlier { marker: m, frames, kind: k, peak_m_s2 }) if *m == marker && range.start <= frames.end => {
+                    frames.end = frames.end.max(range.end);
+                    *peak_m_s2 = peak_m_s2.max(peak);
+                    if kind == OutlierKind::Spike {
+                        *k = OutlierKind::Spike;
+                    }
+                }
+                _ => out.push(Outlier { marker, frames: range, kind, peak_m_s2: peak }),
+            }
+        }
+    }
+    out
+}
+
+/// Runs of at least `min_len` frames in which the marker's coordinates do not change at all.
+fn stuck_runs(take: &Take, marker: usize, min_len: usize) -> Vec<Range<usize>> {
+    let mut runs = Vec::new();
+    if min_len < 2 {
+        return runs;
+    }
+    let mut start = 0;
+    let mut last: Option<Vec3> = None;
+    for f in 0..=take.frame_count() {
+        let p = if f < take.frame_count() { take.position_mm(f, marker) } else { None };
+        let same = matches!((p, last), (Some(a), Some(b)) if a == b);
+        if !same {
+            if f - start >= min_len && last.is_some() && others_move(take, marker, start..f) {
+                // Keep the first sample: it was genuinely captured; the repeats were not.
+                runs.push(start + 1..f);
+            }
+            start = f;
+        }
+        last = p;
+    }
+    runs
+}
+
+/// A marker standing perfectly still is only suspicious while the rest of the subject moves:
+/// a static calibration pose in an integer file can repeat values honestly.
+const MOVING_MM: f64 = 5.0;
+
+fn others_move(take: &Take, marker: usize, run: Range<usize>) -> bool {
+    (0..take.marker_count()).filter(|m| *m != marker).any(|m| {
+        match (take.position_mm(run.start, m), take.position_mm(run.end - 1, m)) {
+            (Some(a), Some(b)) => (a - b).norm() > MOVING_MM,
+            _ => false,
+        }
+    })
+}
+
+/// Removes every outlier range from `take` (the samples become missing) and returns the
+/// mask of removed samples.
+pub fn remove(take: &mut Take, outliers: &[Outlier]) -> Vec<bool> {
+    let m = take.marker_count();
+    let mut removed = vec![false; take.validity().len()];
+    for o in outliers {
+        for f in o.frames.clone() {
+            if take.is_valid(f, o.marker) {
+                // Setting a sample missing cannot fail.
+                let _ = take.set_position_mm(f, o.marker, None);
+                removed[f * m + o.marker] = true;
+            }
+        }
+    }
+    removed
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use locap_core::MarkerName;
+
+    fn smooth_take(frames: usize) -> Take {
+        let names = vec![MarkerName::parse("LKNE"), MarkerName::parse("LFIN")];
+        let mut samples = Vec::new();
+        for f in 0..frames {
+            let s = f as f64 / 120.0;
+            // A knee swinging 300 mm at 1 Hz: peak acceleration 0.15 * (2 pi)^2 = 5.9 m/s^2.
+            samples.push(Some(Vec3::new(150.0 * (std::f64::consts::TAU * s).sin(), 0.0, 500.0)));
+            samples.push(Some(Vec3::new(0.0, 200.0 * (std::f64::consts::TAU * 2.0 * s).sin(), 900.0)));
+        }
+        Take::from_samples(names, &samples, 120.0).unwrap()
+    }
+
+    #[test]
+    fn smooth_motion_has_no_outliers() {
+        assert!(detect(&smooth_take(600), &OutlierConfig::default()).is_empty());
+    }
+
+    #[test]
+    fn injected_spikes_are_found_and_removed() {
+        let mut take = smooth_take(600);
+        let p = take.position_mm(200, 0).unwrap();
+        take.set_position_mm(200, 0, Some(p + Vec3::new(0.0, 0.0, 15.0))).unwrap();
+        let q = take.position_mm(400, 1).unwrap();
+        take.set_position_mm(400, 1, Some(q + Vec3::new(40.0, 0.0, 0.0))).unwrap();
+        let found = detect(&take, &OutlierConfig::default());
+        assert_eq!(found.len(), 2, "{found:?}");
+        assert_eq!((found[0].marker, found[0].frames.clone()), (0, 198..203));
+        assert_eq!((found[1].marker, found[1].frames.clone()), (1, 398..403));
+        let removed = remove(&mut take, &found);
+        assert_eq!(removed.iter().filter(|r| **r).count(), 10);
+        assert!(!take.is_valid(200, 0));
+    }
+
+    #[test]
+    fn hand_markers_have_their_own_threshold() {
+        let mut take = smooth_take(300);
+        let q = take.position_mm(100, 1).unwrap();
+        // A 7 mm spike: about 200 m/s^2, an outlier for the body but not for a hand.
+        take.set_position_mm(100, 1, Some(q + Vec3::new(7.0, 0.0, 0.0))).unwrap();
+        assert!(detect(&take, &OutlierConfig::default()).is_empty());
+        let config = OutlierConfig { hand_markers: vec!["LKNE".into()], ..OutlierConfig::default() };
+        assert_eq!(detect(&take, &config).len(), 1);
+    }
+
+    #[test]
+    fn stuck_markers_are_found() {
+        let mut take = smooth_take(100);
+        let p = take.position_mm(40, 0).unwrap();
+        for f in 41..50 {
+            take.set_position_mm(f, 0, Some(p)).unwrap();
+        }
+        let found = detect(&take, &OutlierConfig { body_threshold_m_s2: 1e9, ..OutlierConfig::default() });
+        assert_eq!(found.len(), 1);
+        assert_eq!(found[0].kind, OutlierKind::Stuck);
+        assert_eq!(found[0].frames, 41..50);
+    }
+}
