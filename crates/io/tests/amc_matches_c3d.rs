@@ -30,6 +30,16 @@ fn marker_mean(take: &Take, frame: usize, labels: &[&str]) -> Option<Vec3> {
     Some(sum / labels.len() as f64)
 }
 
+/// Markers whose mean must follow a joint: its distance to the joint must have a standard
+/// deviation below `max_std` (rigid attachment) or a mean below `max_mean` (close by).
+struct Check {
+    what: &'static str,
+    markers: &'static [&'static str],
+    joint: usize,
+    max_std: Option<f64>,
+    max_mean: Option<f64>,
+}
+
 /// Mean and standard deviation.
 fn mean_std(values: &[f64]) -> (f64, f64) {
     let n = values.len() as f64;
@@ -49,24 +59,35 @@ fn cmu_01_01_markers_follow_the_amc_skeleton() {
 
     let skeleton = &motion.skeleton;
     let joint = |name: &str| skeleton.index_of(name).unwrap_or_else(|| panic!("joint {name} not in 01.asf"));
-    // (what, markers averaged, joint, largest std, largest mean)
-    let checks: [(&str, &[&str], usize, Option<f64>, Option<f64>); 4] = [
-        ("LANK - lfoot", &["LANK"], joint("lfoot"), Some(10.0), None),
-        ("RANK - rfoot", &["RANK"], joint("rfoot"), Some(10.0), None),
-        ("head markers - head_End", &["LFHD", "RFHD", "LBHD", "RBHD"], joint("head_End"), None, Some(80.0)),
-        ("pelvis markers - root", &["LFWT", "RFWT", "LBWT", "RBWT"], joint("root"), None, Some(60.0)),
+    let checks = [
+        Check { what: "LANK - lfoot", markers: &["LANK"], joint: joint("lfoot"), max_std: Some(10.0), max_mean: None },
+        Check { what: "RANK - rfoot", markers: &["RANK"], joint: joint("rfoot"), max_std: Some(10.0), max_mean: None },
+        Check {
+            what: "head markers - head_End",
+            markers: &["LFHD", "RFHD", "LBHD", "RBHD"],
+            joint: joint("head_End"),
+            max_std: None,
+            max_mean: Some(80.0),
+        },
+        Check {
+            what: "pelvis markers - root",
+            markers: &["LFWT", "RFWT", "LBWT", "RBWT"],
+            joint: joint("root"),
+            max_std: None,
+            max_mean: Some(60.0),
+        },
     ];
     let mut distances: Vec<Vec<f64>> = vec![Vec::new(); checks.len()];
     for frame in 0..take.frame_count() {
         let pose = motion.forward_kinematics(frame);
-        for (k, (_, labels, j, _, _)) in checks.iter().enumerate() {
-            if let Some(marker) = marker_mean(&take, frame, labels) {
-                distances[k].push((marker - asf_to_c3d(pose.positions_mm[*j])).norm());
+        for (k, check) in checks.iter().enumerate() {
+            if let Some(marker) = marker_mean(&take, frame, check.markers) {
+                distances[k].push((marker - asf_to_c3d(pose.positions_mm[check.joint])).norm());
             }
         }
     }
     let mut failures = Vec::new();
-    for ((what, _, _, max_std, max_mean), d) in checks.iter().zip(&distances) {
+    for (Check { what, max_std, max_mean, .. }, d) in checks.iter().zip(&distances) {
         assert!(d.len() > 2000, "{what}: markers present in only {} frames", d.len());
         let (mean, std) = mean_std(d);
         eprintln!("01_01 {what}: mean {mean:.1} mm, std {std:.1} mm over {} frames", d.len());

@@ -100,7 +100,7 @@ fn compare(ours: &C3dFile, theirs: &c3dio::C3d, counts: &mut Counts) -> Vec<Stri
             }
             if take.is_valid(f, m) && !theirs_negative {
                 let d = (0..3).map(|k| (w[k] - p.point[k]).abs()).fold(0f32, f32::max);
-                if !(d <= tolerance) {
+                if d.is_nan() || d > tolerance {
                     first_bad.get_or_insert((f, m, w, p.point));
                 }
                 if d.is_finite() {
@@ -131,11 +131,11 @@ fn c3dio_reads_what_locap_reads() {
     let (mut report, mut known_seen) = (Vec::new(), 0);
     for path in common::files_with_extension(&data, "c3d") {
         let name = path.strip_prefix(&data).unwrap().display().to_string();
-        let theirs = std::panic::catch_unwind(|| c3dio::C3d::load_path(path.clone()));
+        let theirs = std::panic::catch_unwind(|| c3dio::C3d::load_path(path.clone()).map_err(|e| format!("{e:?}")));
         let theirs = match theirs {
             Ok(Ok(c)) => c,
             Ok(Err(e)) => {
-                eprintln!("{name}: c3dio error {e:?}");
+                eprintln!("{name}: c3dio error {e}");
                 continue;
             }
             Err(_) => {
