@@ -4,9 +4,11 @@
 //! documented disagreements in [`KNOWN`], each checked by hand (see there for who is right).
 //!
 //! Missing samples: c3dio has no notion of them; it returns the stored coordinates and the
-//! residual byte. It decodes the residual from the *low byte* of the residual word only
-//! (`word & 0xff` as a signed byte), whereas the C3D standard (and locap) calls a sample
-//! missing when the whole 16-bit word is negative, and locap also treats all-zero or
+//! residual byte. In float files it reads the residual as the *low byte* of the residual word
+//! taken as a signed byte (so a valid sample whose residual byte is 128 or more reads as
+//! negative; about 288 000 samples of the shared files), in integer files it does so only when
+//! the word is negative; the C3D standard (and locap) calls a sample missing when the whole
+//! 16-bit word is negative, and locap also treats all-zero or
 //! non-finite coordinates as missing. So coordinates are compared where locap finds a sample
 //! and c3dio's residual is non-negative, and every sample where the two disagree about a
 //! negative residual must be explained by c3dio's low-byte rule applied to the raw word.
