@@ -408,7 +408,10 @@ impl C3dFile {
                 max_gap: 0,
                 scale: -0.1,
                 data_block: 0,
-                analog_per_channel: 0,
+                // One analog sample per channel per frame, matching ANALOG:RATE = POINT:RATE
+                // above (with no channels, no analog data either way); a 0 here contradicts
+                // that rate, and py-c3d refuses such files ("inconsistent analog rate").
+                analog_per_channel: 1,
                 frame_rate_hz: rate,
                 events_key: true,
                 events: Vec::new(),
