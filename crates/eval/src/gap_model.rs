@@ -1,0 +1,212 @@
+//! Realistic occlusion gaps to hide in clean takes (LocalMoCap section 3.3, Eq. 6).
+//!
+//! A [`GapModel`] holds what real captures say about occlusion: the distribution of per-marker
+//! missing fractions and the gap-length histogram, both measured with
+//! [`locap_core::GapStatistics`] (or read from the statistics published with the paper). To
+//! corrupt a take, each marker draws a missing fraction from the pool, then gap lengths are
+//! drawn from the histogram until that fraction is reached; the gaps are placed longest
+//! first, each at a random position where it overlaps no earlier gap and leaves at least one
+//! visible frame on each side, so every hidden sample has ground truth and real borders. The
+//! marker sets of the statistics and of the take need not match: fractions are drawn from the
+//! pool, not matched by name.
+
+use locap_core::gaps::Gap;
+use locap_core::GapStatistics;
+use rand::{Rng, RngExt};
+use serde::{Deserialize, Serialize};
+
+/// Errors building a gap model.
+#[derive(Debug, thiserror::Error)]
+pub enum GapModelError {
+    /// The statistics contain no gaps at all.
+    #[error("the gap statistics contain no gaps: nothing to learn gap lengths from")]
+    NoGaps,
+    /// A JSON file is neither locap's form nor the paper's.
+    #[error("unrecognised gap statistics JSON: {0}")]
+    Json(String),
+}
+
+/// Occlusion statistics to sample gaps from.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct GapModel {
+    /// Missing fraction of each marker of the source captures (the pool markers draw from).
+    pub missing_fractions: Vec<f64>,
+    /// `length_histogram[n]`: number of real gaps of `n` frames.
+    pub length_histogram: Vec<u64>,
+    /// Longest gap hidden, in frames (longer ones in the histogram are ignored).
+    pub max_gap_frames: usize,
+}
+
+impl GapModel {
+    /// Pools the statistics of several takes or marker sets.
+    pub fn from_statistics<'a>(stats: impl IntoIterator<Item = &'a GapStatistics>) -> Result<GapModel, GapModelError> {
+        let mut fractions = Vec::new();
+        let mut histogram: Vec<u64> = Vec::new();
+        for s in stats {
+            for m in &s.markers {
+                fractions.push(m.missing_fraction());
+                add(&mut histogram, &m.gap_length_histogram);
+            }
+        }
+        GapModel::new(fractions, histogram)
+    }
+
+    /// Reads gap statistics JSON: either [`GapStatistics`] (what `locap info --json` prints
+    /// under `gaps`) or the paper repository's form (`{"sets": {NAME: {"markers": [{
+    /// "missing_frames", "total_frames", "gap_length_histogram"}]}}}`).
+    pub fn from_json(text: &str) -> Result<GapModel, GapModelError> {
+        let value: serde_json::Value = serde_json::from_str(text).map_err(|e| GapModelError::Json(e.to_string()))?;
+        let mut fractions = Vec::new();
+        let mut histogram = Vec::new();
+        let mut read_markers = |markers: &serde_json::Value| -> Result<(), GapModelError> {
+            let list = markers.as_array().ok_or_else(|| GapModelError::Json("`markers` is not a list".into()))?;
+            for m in list {
+                let missing = m["missing_frames"].as_f64().unwrap_or(0.0);
+                let total = m["total_frames"].as_f64().unwrap_or(0.0);
+                if total > 0.0 {
+                    fractions.push(missing / total);
+                }
+                let h: Vec<usize> = m["gap_length_histogram"]
+                    .as_array()
+                    .map(|a| a.iter().map(|v| v.as_u64().unwrap_or(0) as usize).collect())
+                    .unwrap_or_default();
+                add(&mut histogram, &h);
+            }
+            Ok(())
+        };
+        if let Some(sets) = value.get("sets").and_then(|s| s.as_object()) {
+            for set in sets.values() {
+                read_markers(&set["markers"])?;
+            }
+        } else if value.get("markers").is_some() {
+            read_markers(&value["markers"])?;
+        } else if let Some(gaps) = value.get("gaps") {
+            read_markers(&gaps["markers"])?;
+        } else {
+            return Err(GapModelError::Json("expected `sets`, `markers` or `gaps`".into()));
+        }
+        GapModel::new(fractions, histogram)
+    }
+
+    /// A model with a fixed missing fraction and gap lengths uniform in `1..=max_len`.
+    pub fn uniform(missing_fraction: f64, max_len: usize) -> GapModel {
+        let mut h = vec![1u64; max_len.max(1) + 1];
+        h[0] = 0;
+        GapModel { missing_fractions: vec![missing_fraction], length_histogram: h, max_gap_frames: max_len.max(1) }
+    }
+
+    fn new(missing_fractions: Vec<f64>, length_histogram: Vec<u64>) -> Result<GapModel, GapModelError> {
+        if length_histogram.iter().skip(1).all(|c| *c == 0) {
+            return Err(GapModelError::NoGaps);
+        }
+        let max_gap_frames = length_histogram.len() - 1;
+        Ok(GapModel { missing_fractions, length_histogram, max_gap_frames })
+    }
+
+    /// Draws one gap length from the histogram (lengths above `max_gap_frames` excluded).
+    fn draw_length(&self, rng: &mut impl Rng) -> usize {
+        let top = self.max_gap_frames.min(self.length_histogram.len() - 1);
+        let total: u64 = self.length_histogram[1..=top].iter().sum();
+        if total == 0 {
+            return 1;
+        }
+        let mut pick = rng.random_range(0..total);
+        for (len, count) in self.length_histogram.iter().enumerate().take(top + 1).skip(1) {
+            if pick < *count {
+                return len;
+            }
+            pick -= count;
+        }
+        top
+    }
+
+    /// Gaps to hide for each of `markers` markers in a take of `frames` frames, where
+    /// `visible(frame, marker)` says whether ground truth exists. Gaps are placed only over
+    /// visible samples with visible borders.
+    pub fn sample(
+        &self,
+        frames: usize,
+        markers: usize,
+        visible: impl Fn(usize, usize) -> bool,
+        rng: &mut impl Rng,
+    ) -> Vec<Vec<Gap>> {
+        (0..markers)
+            .map(|marker| {
+                if self.missing_fractions.is_empty() || frames < 3 {
+                    return Vec::new();
+                }
+                let fraction = self.missing_fractions[rng.random_range(0..self.missing_fractions.len())];
+                let target = (fraction * frames as f64).round() as usize;
+                let mut lengths = Vec::new();
+                let mut sum = 0;
+                while sum < target && lengths.len() < frames {
+                    let len = self.draw_length(rng).min(frames - 2);
+                    lengths.push(len);
+                    sum += len;
+                }
+                lengths.sort_unstable_by(|a, b| b.cmp(a));
+                let mut taken = vec![false; frames];
+                let mut gaps = Vec::new();
+                for len in lengths {
+                    // A few random tries; a gap that does not fit anywhere is dropped.
+                    for _ in 0..20 {
+                        let start = rng.random_range(1..frames - len);
+                        let free = (start - 1..start + len + 1).all(|f| !taken[f] && visible(f, marker));
+                        if free {
+                            taken[start..start + len].fill(true);
+                            gaps.push(Gap { start, len });
+                            break;
+                        }
+                    }
+                }
+                gaps.sort_by_key(|g| g.start);
+                gaps
+            })
+            .collect()
+    }
+}
+
+fn add(total: &mut Vec<u64>, h: &[usize]) {
+    if total.len() < h.len() {
+        total.resize(h.len(), 0);
+    }
+    for (t, v) in total.iter_mut().zip(h) {
+        *t += *v as u64;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::SeedableRng;
+
+    #[test]
+    fn sampled_gaps_follow_the_model_and_never_touch() {
+        let model = GapModel::uniform(0.2, 50);
+        let mut rng = rand::rngs::StdRng::seed_from_u64(1);
+        let gaps = model.sample(2000, 10, |_, _| true, &mut rng);
+        for marker_gaps in &gaps {
+            let hidden: usize = marker_gaps.iter().map(|g| g.len).sum();
+            assert!(hidden > 250 && hidden <= 450, "{hidden}");
+            for g in marker_gaps {
+                assert!(g.start >= 1 && g.end() < 2000 && g.len <= 50);
+            }
+            for w in marker_gaps.windows(2) {
+                assert!(w[0].end() < w[1].start, "gaps must keep a visible frame between them");
+            }
+        }
+        // Same seed, same gaps.
+        let mut rng = rand::rngs::StdRng::seed_from_u64(1);
+        assert_eq!(model.sample(2000, 10, |_, _| true, &mut rng), gaps);
+    }
+
+    #[test]
+    fn reads_the_paper_json_form() {
+        let json = r#"{"sets": {"a": {"markers": [
+            {"name": "X", "missing_frames": 10, "total_frames": 100, "gap_length_histogram": [0, 2, 0, 1]}]}}}"#;
+        let model = GapModel::from_json(json).unwrap();
+        assert_eq!(model.missing_fractions, vec![0.1]);
+        assert_eq!(model.length_histogram, vec![0, 2, 0, 1]);
+        assert!(matches!(GapModel::from_json("{}"), Err(GapModelError::Json(_))));
+    }
+}
