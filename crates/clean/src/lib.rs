@@ -115,3 +115,30 @@ pub fn fill_gaps(take: &Take, config: &FillConfig) -> Filled {
 fn unimplemented_method(take: &Take, _method: FillMethod) -> Filled {
     Filled::unchanged(take)
 }
+
+/// Refills the windows of removed outliers with a cubic spline through the trajectory around
+/// them (LocalMoCap section 3.1: "fill the gap with spline interpolation"), after the main
+/// fill has completed the neighbourhood. Samples that the spline cannot reach stay as the
+/// main fill left them.
+pub fn refill_outliers(filled: &mut Filled, found: &[outliers::Outlier]) {
+    let m = filled.take.marker_count();
+    for o in found {
+        let saved: Vec<(usize, Option<locap_core::Vec3>, bool)> = o
+            .frames
+            .clone()
+            .map(|f| (f, filled.take.position_mm(f, o.marker), filled.filled[f * m + o.marker]))
+            .collect();
+        let refilled = baseline::spline::spline_fill_range(filled, o.marker, o.frames.clone());
+        if refilled < o.frames.len() {
+            // Keep the main fill's samples where the spline had no support.
+            for (f, p, was_filled) in saved {
+                if !filled.take.is_valid(f, o.marker)
+                    && let Some(p) = p
+                    && filled.take.set_position_mm(f, o.marker, Some(p)).is_ok()
+                {
+                    filled.filled[f * m + o.marker] = was_filled;
+                }
+            }
+        }
+    }
+}

@@ -28,6 +28,10 @@ enum Command {
     Info(cmd::info::Args),
     /// Convert between formats (chosen from the file extensions).
     Convert(cmd::convert::Args),
+    /// Fill occlusion gaps and remove outliers (LocalMoCap section 3.1).
+    Clean(cmd::clean::Args),
+    /// Measure accuracy and speed against baselines on real takes.
+    Bench(cmd::bench::Args),
 }
 
 fn main() -> ExitCode {
@@ -35,6 +39,8 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Info(args) => cmd::info::run(args),
         Command::Convert(args) => cmd::convert::run(args),
+        Command::Clean(args) => cmd::clean::run(args),
+        Command::Bench(args) => cmd::bench::run(args),
     };
     match result {
         Ok(code) => code,

@@ -1,4 +1,6 @@
 //! One module per subcommand.
 
+pub mod bench;
+pub mod clean;
 pub mod convert;
 pub mod info;

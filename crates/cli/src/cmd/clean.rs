@@ -1,0 +1,243 @@
+//! `locap clean`: fill occlusion gaps and remove outliers (LocalMoCap section 3.1), one take
+//! per job.
+//!
+//! Order of work for a take: outliers are detected on the raw data and removed, every gap
+//! (occlusions and removed outliers alike) is filled with the chosen method, then the
+//! outlier windows are refilled with a cubic spline through the now-complete trajectory, as
+//! the paper does. Filled samples get residual 0 (the C3D convention for "not measured") and
+//! are listed, frame ranges per marker, in the C3D parameters `LOCAP:FILLED` and
+//! `LOCAP:OUTLIERS`, so any C3D viewer shows what locap changed.
+
+use crate::inputs;
+use anyhow::{Context, Result, bail};
+use clap::{Parser, ValueEnum};
+use locap_clean::outliers::{self, OutlierConfig};
+use locap_clean::{FillConfig, FillMethod, neighbours::Selection};
+use locap_core::Take;
+use locap_io::c3d;
+use rayon::prelude::*;
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+
+/// Arguments of `locap clean`.
+#[derive(Parser, Debug)]
+#[command(after_help = "Examples:\n  locap clean take.c3d -o take_clean.c3d\n  locap clean takes/ -o cleaned/ --method edm")]
+pub struct Args {
+    /// C3D takes, or folders searched recursively.
+    #[arg(required = true, value_name = "FILE")]
+    inputs: Vec<PathBuf>,
+    /// Output C3D file (one input) or folder (several inputs or a folder).
+    #[arg(short, long, value_name = "PATH", help_heading = "Output")]
+    output: PathBuf,
+    /// Gap-filling method.
+    #[arg(long, value_enum, default_value_t = Method::Edm, help_heading = "Filling")]
+    method: Method,
+    /// Neighbours used by EDM (the paper's K).
+    #[arg(long, default_value_t = 6, value_name = "K", help_heading = "Filling")]
+    neighbours: usize,
+    /// How neighbours are ranked.
+    #[arg(long, value_enum, default_value_t = Ranking::Variance, help_heading = "Filling")]
+    ranking: Ranking,
+    /// Detect and remove outliers (acceleration peaks, stuck markers).
+    #[arg(long, value_enum, default_value_t = Switch::On, help_heading = "Outliers")]
+    outliers: Switch,
+    /// Acceleration prominence that makes a body marker sample an outlier, m/s^2.
+    #[arg(long, default_value_t = OutlierConfig::default().body_threshold_m_s2, value_name = "M_S2", help_heading = "Outliers")]
+    body_threshold: f64,
+    /// Acceleration prominence that makes a hand marker sample an outlier, m/s^2.
+    #[arg(long, default_value_t = OutlierConfig::default().hand_threshold_m_s2, value_name = "M_S2", help_heading = "Outliers")]
+    hand_threshold: f64,
+}
+
+/// Gap-filling methods on the command line.
+#[derive(Debug, Clone, Copy, ValueEnum)]
+pub enum Method {
+    /// Locality EDM fill (the paper's).
+    Edm,
+    /// Linear interpolation.
+    Linear,
+    /// Cubic spline.
+    Spline,
+    /// PCA over all markers (Gløersen & Federolf 2016).
+    Pca,
+    /// Rigid-body fill from 3 neighbours.
+    Rigid,
+}
+
+impl From<Method> for FillMethod {
+    fn from(m: Method) -> FillMethod {
+        match m {
+            Method::Edm => FillMethod::Edm,
+            Method::Linear => FillMethod::Linear,
+            Method::Spline => FillMethod::Spline,
+            Method::Pca => FillMethod::Pca,
+            Method::Rigid => FillMethod::Rigid,
+        }
+    }
+}
+
+/// Neighbour ranking on the command line.
+#[derive(Debug, Clone, Copy, ValueEnum)]
+pub enum Ranking {
+    /// Lowest variance of the distance (the paper's).
+    Variance,
+    /// Nearest on average.
+    Nearest,
+}
+
+/// On or off.
+#[derive(Debug, Clone, Copy, ValueEnum, PartialEq, Eq)]
+pub enum Switch {
+    /// Enabled.
+    On,
+    /// Disabled.
+    Off,
+}
+
+/// What cleaning did to one take.
+#[derive(Debug, Default)]
+struct Summary {
+    gaps: usize,
+    filled_samples: usize,
+    still_missing: usize,
+    outliers: usize,
+    outlier_samples: usize,
+    /// Per marker: (label, gaps, filled samples, still missing, outlier ranges).
+    markers: Vec<(String, usize, usize, usize, usize)>,
+}
+
+/// Runs `locap clean`.
+pub fn run(args: Args) -> Result<ExitCode> {
+    let files = inputs::expand(&args.inputs, &["c3d"])?;
+    let single = files.len() == 1 && args.inputs.len() == 1 && !args.inputs[0].is_dir() && !args.output.is_dir();
+    if !single {
+        std::fs::create_dir_all(&args.output)
+            .with_context(|| format!("{}: cannot create output folder", args.output.display()))?;
+    }
+    let bar = crate::progress(files.len(), "cleaning");
+    let results: Vec<(PathBuf, Result<Summary>)> = files
+        .par_iter()
+        .map(|input| {
+            let target =
+                if single { args.output.clone() } else { args.output.join(input.file_name().unwrap_or_default()) };
+            let result = clean_one(input, &target, &args);
+            bar.inc(1);
+            (input.clone(), result)
+        })
+        .collect();
+    bar.finish_and_clear();
+    let mut failed = 0;
+    let mut text = String::new();
+    for (path, result) in results {
+        match result {
+            Ok(summary) => text.push_str(&format_summary(&path, &summary)),
+            Err(err) => {
+                failed += 1;
+                crate::report_failure(&path, &err);
+            }
+        }
+    }
+    crate::emit(&text)?;
+    Ok(if failed > 0 { ExitCode::from(1) } else { ExitCode::SUCCESS })
+}
+
+fn clean_one(input: &Path, output: &Path, args: &Args) -> Result<Summary> {
+    if input == output {
+        bail!("{}: input and output are the same file; locap never overwrites its input", input.display());
+    }
+    let mut file = c3d::read_path(input)?;
+    let raw = file.to_take().map_err(|e| e.in_file(input))?;
+    let config = OutlierConfig {
+        body_threshold_m_s2: args.body_threshold,
+        hand_threshold_m_s2: args.hand_threshold,
+        ..OutlierConfig::default()
+    };
+    let found = if args.outliers == Switch::On { outliers::detect(&raw, &config) } else { Vec::new() };
+    let mut holed = raw.clone();
+    let removed = outliers::remove(&mut holed, &found);
+    let fill = FillConfig {
+        method: args.method.into(),
+        neighbours: args.neighbours,
+        selection: match args.ranking {
+            Ranking::Variance => Selection::Variance,
+            Ranking::Nearest => Selection::MeanDistance,
+        },
+    };
+    let mut filled = locap_clean::fill_gaps(&holed, &fill);
+    locap_clean::refill_outliers(&mut filled, &found);
+    let summary = summarize(&raw, &filled.take, &filled.filled, &removed, &found);
+    let labels: Vec<String> = raw.markers().iter().map(|m| m.full()).collect();
+    file.set_take(&filled.take).map_err(|e| e.in_file(input))?;
+    let filled_ranges = ranges(&filled.take, &filled.filled, &labels);
+    let outlier_ranges: Vec<String> = found
+        .iter()
+        .map(|o| {
+            format!(
+                "{} {}-{} {:?}",
+                labels[o.marker],
+                raw.first_frame as usize + o.frames.start,
+                raw.first_frame as usize + o.frames.end - 1,
+                o.kind
+            )
+        })
+        .collect();
+    file.parameters.set_continued_strings("LOCAP", "FILLED", &filled_ranges);
+    file.parameters.set_continued_strings("LOCAP", "OUTLIERS", &outlier_ranges);
+    file.parameters.set_strings("LOCAP", "METHOD", &[format!("{:?} K={}", fill.method, fill.neighbours)]);
+    c3d::write_path(&file, output)?;
+    Ok(summary)
+}
+
+/// `LABEL first-last` (C3D frame numbers) for every run of filled samples.
+fn ranges(take: &Take, filled: &[bool], labels: &[String]) -> Vec<String> {
+    let m = take.marker_count();
+    let mut out = Vec::new();
+    for (marker, label) in labels.iter().enumerate() {
+        let mask = (0..take.frame_count()).map(|f| filled[f * m + marker]);
+        for gap in locap_core::gaps::gaps_of(mask.map(|x| !x)) {
+            let first = take.first_frame as usize + gap.start;
+            out.push(format!("{label} {first}-{}", first + gap.len - 1));
+        }
+    }
+    out
+}
+
+fn summarize(raw: &Take, result: &Take, filled: &[bool], removed: &[bool], found: &[outliers::Outlier]) -> Summary {
+    let m = raw.marker_count();
+    let mut s = Summary::default();
+    let stats = locap_core::GapStatistics::of_take(raw);
+    for (marker, name) in raw.markers().iter().enumerate() {
+        let filled_here = (0..raw.frame_count()).filter(|f| filled[f * m + marker] && !removed[f * m + marker]).count();
+        let missing = (0..raw.frame_count()).filter(|f| !result.is_valid(*f, marker)).count();
+        let outs = found.iter().filter(|o| o.marker == marker).count();
+        let gaps = stats.markers[marker].gap_count;
+        s.gaps += gaps;
+        s.filled_samples += filled_here;
+        s.still_missing += missing;
+        s.outliers += outs;
+        s.markers.push((name.full(), gaps, filled_here, missing, outs));
+    }
+    s.outlier_samples = removed.iter().filter(|r| **r).count();
+    s
+}
+
+fn format_summary(path: &Path, s: &Summary) -> String {
+    use std::fmt::Write;
+    let mut t = String::new();
+    let _ = writeln!(
+        t,
+        "{}: {} gaps, {} samples filled, {} still missing; {} outliers ({} samples) removed and refilled",
+        path.display(),
+        s.gaps,
+        s.filled_samples,
+        s.still_missing,
+        s.outliers,
+        s.outlier_samples
+    );
+    for (name, gaps, filled, missing, outs) in &s.markers {
+        if *gaps > 0 || *outs > 0 || *missing > 0 {
+            let _ = writeln!(t, "  {name:<24} gaps {gaps:>4}  filled {filled:>6}  missing {missing:>6}  outliers {outs:>3}");
+        }
+    }
+    t
+}
