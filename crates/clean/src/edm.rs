@@ -40,10 +40,10 @@ pub fn fill(take: &Take, k: usize, selection: Selection) -> Filled {
     for pass in 0..2 {
         // Pass 0 uses captured neighbours only; pass 1 also filled ones.
         let source = if pass == 0 { take.clone() } else { out.take.clone() };
-        for marker in 0..take.marker_count() {
+        for (marker, ranked) in ranked.iter().enumerate() {
             let gaps = gaps_of((0..take.frame_count()).map(|f| out.take.is_valid(f, marker)));
             for gap in gaps {
-                fill_gap(&mut out, &source, marker, gap, &ranked[marker], k);
+                fill_gap(&mut out, &source, marker, gap, ranked, k);
             }
         }
     }

@@ -23,6 +23,7 @@
 //! Every method returns a [`Filled`] take with the mask of the samples it computed, so a
 //! writer can mark them and a benchmark can score exactly them.
 
+pub mod baseline;
 pub mod edm;
 pub mod local_frame;
 pub mod neighbours;
@@ -108,12 +109,11 @@ impl Default for FillConfig {
 pub fn fill_gaps(take: &Take, config: &FillConfig) -> Filled {
     match config.method {
         FillMethod::Edm => edm::fill(take, config.neighbours, config.selection),
-        other => unimplemented_method(take, other),
+        FillMethod::Linear => baseline::linear::fill(take),
+        FillMethod::Spline => baseline::spline::fill(take),
+        FillMethod::Pca => baseline::pca::fill(take, &baseline::pca::PcaConfig::default()),
+        FillMethod::Rigid => baseline::rigid::fill(take, config.selection),
     }
-}
-
-fn unimplemented_method(take: &Take, _method: FillMethod) -> Filled {
-    Filled::unchanged(take)
 }
 
 /// Refills the windows of removed outliers with a cubic spline through the trajectory around

@@ -39,8 +39,8 @@ pub fn rank(take: &Take, selection: Selection) -> Vec<Vec<usize>> {
         frame.extend((0..m).map(|k| take.position_mm(f, k)));
         for i in 0..m {
             let Some(pi) = frame[i] else { continue };
-            for j in i + 1..m {
-                let Some(pj) = frame[j] else { continue };
+            for (j, pj) in frame.iter().enumerate().skip(i + 1) {
+                let Some(pj) = *pj else { continue };
                 let d = (pi - pj).norm();
                 let k = i * m + j;
                 count[k] += 1;

@@ -46,7 +46,7 @@ pub fn align(source: &[Vec3], target: &[Vec3]) -> Option<RigidTransform> {
     // Collinear or coincident points leave the rotation about their line undetermined.
     let mut sv: Vec<f64> = svd.singular_values.iter().copied().collect();
     sv.sort_by(|a, b| b.total_cmp(a));
-    if !(sv[1] > 1e-9 * sv[0].max(1e-300)) {
+    if sv[1].partial_cmp(&(1e-9 * sv[0].max(1e-300))) != Some(std::cmp::Ordering::Greater) {
         return None;
     }
     let mut d = Matrix3::identity();

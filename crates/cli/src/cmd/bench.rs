@@ -6,7 +6,6 @@ use anyhow::{Context, Result, bail};
 use clap::{Parser, Subcommand, ValueEnum};
 use locap_eval::fill_bench::{self, Variant};
 use locap_eval::gap_model::GapModel;
-use std::io::Write;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
