@@ -106,7 +106,27 @@ impl Default for FillConfig {
 }
 
 /// Fills every gap of every marker of `take` with `config.method`.
+///
+/// Unlabeled points (`*N`) are left as they are: they are not markers yet, and a gap of a
+/// point that may be a ghost has no meaning.
 pub fn fill_gaps(take: &Take, config: &FillConfig) -> Filled {
+    let mut filled = fill_with_method(take, config);
+    let m = take.marker_count();
+    for (marker, name) in take.markers().iter().enumerate() {
+        if name.is_unlabeled() {
+            for f in 0..take.frame_count() {
+                if filled.filled[f * m + marker] {
+                    // Removing a sample cannot fail.
+                    let _ = filled.take.set_position_mm(f, marker, None);
+                    filled.filled[f * m + marker] = false;
+                }
+            }
+        }
+    }
+    filled
+}
+
+fn fill_with_method(take: &Take, config: &FillConfig) -> Filled {
     match config.method {
         FillMethod::Edm => edm::fill(take, config.neighbours, config.selection),
         FillMethod::Linear => baseline::linear::fill(take),

@@ -154,7 +154,12 @@ pub fn local_frames(take: &Take, definition: &FrameDefinition) -> Result<Vec<Loc
         y_to: resolve(&definition.y_to)?,
     };
     let per_frame: Vec<Option<LocalFrame>> = (0..take.frame_count()).map(|f| frame_at(take, &idx, f)).collect();
-    let first = per_frame.iter().flatten().next().copied().ok_or_else(|| LocalFrameError::NeverDefined(definition.name.clone()))?;
+    let first = per_frame
+        .iter()
+        .flatten()
+        .next()
+        .copied()
+        .ok_or_else(|| LocalFrameError::NeverDefined(definition.name.clone()))?;
     let mut held = first;
     Ok(per_frame
         .into_iter()

@@ -6,14 +6,16 @@
 //! three consecutive samples exist. A frame is an outlier when its acceleration is a local
 //! maximum whose *prominence* (height above the higher of the lowest points between it and
 //! the nearest higher peak on each side, searched within a window; the definition of
-//! `scipy.signal.peak_prominences`) exceeds the threshold of the marker's body region. Hand
+//! `scipy.signal.peak_prominences`) exceeds the threshold of the marker's body region *and*
+//! the acceleration reverses direction at a neighbouring frame (a displaced sample; genuine
+//! impacts such as heel strikes accelerate one way and are kept). Hand
 //! markers move faster than body markers, so each region has its own threshold
 //! ([`OutlierConfig`]). Around each outlier a window of frames is removed; overlapping
 //! windows merge. [`detect`] only reports; [`remove`] turns the windows into gaps that the
 //! caller refills (the CLI uses cubic splines, as the paper does).
 //!
-//! A "stuck" marker (exactly the same coordinates for several frames while other markers
-//! move, as some systems repeat the last sample when tracking is lost) is reported and
+//! A "stuck" marker (exactly the same coordinates for several frames while the neighbours on
+//! its body segment move, as some systems repeat the last sample when tracking is lost) is reported and
 //! removed too. Swapped labels between two markers are not detected here: a swap shows as two
 //! simultaneous spikes and is removed as such, but not swapped back (labeling's job).
 
@@ -59,9 +61,12 @@ impl Default for OutlierConfig {
 /// `RNG`/`RING`, `PNK`/`PINKY`/`LITTLE`).
 pub fn is_hand_label(label: &str) -> bool {
     let l = label.to_ascii_uppercase();
-    ["WRA", "WRB", "IWR", "OWR", "HAND", "FIN", "THM", "THUMB", "IDX", "INDEX", "MID", "RNG", "RING", "PNK", "PINK", "LITTLE"]
-        .iter()
-        .any(|p| l.contains(p))
+    [
+        "WRA", "WRB", "IWR", "OWR", "HAND", "FIN", "THM", "THUMB", "IDX", "INDEX", "MID", "RNG", "RING", "PNK", "PINK",
+        "LITTLE",
+    ]
+    .iter()
+    .any(|p| l.contains(p))
 }
 
 /// Why a range of frames was removed.
@@ -127,8 +132,13 @@ fn prominence(a: &[Option<f64>], i: usize, wlen: usize) -> f64 {
 /// Finds outliers in every marker.
 pub fn detect(take: &Take, config: &OutlierConfig) -> Vec<Outlier> {
     let t = take.frame_count();
+    let ranked = crate::neighbours::rank(take, crate::neighbours::Selection::Variance);
     let mut out = Vec::new();
-    for marker in 0..take.marker_count() {
+    for (marker, neighbours) in ranked.iter().enumerate() {
+        if take.markers()[marker].is_unlabeled() {
+            // `*N` points are not markers yet: nothing to compare their motion with.
+            continue;
+        }
         let label = &take.markers()[marker].label;
         let hand = if config.hand_markers.is_empty() {
             is_hand_label(label)
@@ -140,21 +150,25 @@ pub fn detect(take: &Take, config: &OutlierConfig) -> Vec<Outlier> {
         let mut windows: Vec<(Range<usize>, OutlierKind, f64)> = Vec::new();
         for i in 0..t {
             let Some(v) = acc[i] else { continue };
-            let is_peak = (i == 0 || acc[i - 1].is_none_or(|p| p <= v)) && (i + 1 >= t || acc[i + 1].is_none_or(|n| n < v));
+            let is_peak =
+                (i == 0 || acc[i - 1].is_none_or(|p| p <= v)) && (i + 1 >= t || acc[i + 1].is_none_or(|n| n < v));
             if !is_peak || v <= threshold {
                 continue;
             }
             let p = prominence(&acc, i, config.prominence_window_frames);
-            if p > threshold {
+            if p > threshold && reverses(take, marker, i) {
                 let r = i.saturating_sub(config.window_frames)..(i + config.window_frames + 1).min(t);
                 windows.push((r, OutlierKind::Spike, p));
             }
         }
-        windows.extend(stuck_runs(take, marker, config.stuck_frames).into_iter().map(|r| (r, OutlierKind::Stuck, 0.0)));
+        let stuck = stuck_runs(take, marker, neighbours, config.stuck_frames);
+        windows.extend(stuck.into_iter().map(|r| (r, OutlierKind::Stuck, 0.0)));
         windows.sort_by_key(|w| w.0.start);
         for (range, kind, peak) in windows {
             match out.last_mut() {
-                Some(Outlier { marker: m, frames, kind: k, peak_m_s2 }) if *m == marker && range.start <= frames.end => {
+                Some(Outlier { marker: m, frames, kind: k, peak_m_s2 })
+                    if *m == marker && range.start <= frames.end =>
+                {
                     frames.end = frames.end.max(range.end);
                     *peak_m_s2 = peak_m_s2.max(peak);
                     if kind == OutlierKind::Spike {
@@ -168,8 +182,28 @@ pub fn detect(take: &Take, config: &OutlierConfig) -> Vec<Outlier> {
     out
 }
 
+/// Whether the acceleration at frame `f` turns back at a neighbouring frame, the signature of a
+/// displaced sample (a single bad sample `d` gives accelerations `d, -2d, d`; a jump gives
+/// `d, -d`). A genuine impact (a heel strike, a clap) changes velocity once, with acceleration
+/// of one sign, and is not an outlier however strong.
+fn reverses(take: &Take, marker: usize, f: usize) -> bool {
+    let acc = |t: usize| -> Option<Vec3> {
+        let (a, b, c) = (
+            take.position_mm(t.checked_sub(1)?, marker)?,
+            take.position_mm(t, marker)?,
+            take.position_mm(t + 1, marker)?,
+        );
+        Some(a - 2.0 * b + c)
+    };
+    let Some(here) = acc(f) else { return false };
+    let turns = |other: Option<Vec3>| -> bool {
+        other.is_some_and(|o| o.norm() >= 0.3 * here.norm() && o.dot(&here) < -0.5 * o.norm() * here.norm())
+    };
+    turns(f.checked_sub(1).and_then(acc)) || turns(if f + 2 <= take.frame_count() { acc(f + 1) } else { None })
+}
+
 /// Runs of at least `min_len` frames in which the marker's coordinates do not change at all.
-fn stuck_runs(take: &Take, marker: usize, min_len: usize) -> Vec<Range<usize>> {
+fn stuck_runs(take: &Take, marker: usize, ranked: &[usize], min_len: usize) -> Vec<Range<usize>> {
     let mut runs = Vec::new();
     if min_len < 2 {
         return runs;
@@ -180,7 +214,7 @@ fn stuck_runs(take: &Take, marker: usize, min_len: usize) -> Vec<Range<usize>> {
         let p = if f < take.frame_count() { take.position_mm(f, marker) } else { None };
         let same = matches!((p, last), (Some(a), Some(b)) if a == b);
         if !same {
-            if f - start >= min_len && last.is_some() && others_move(take, marker, start..f) {
+            if f - start >= min_len && last.is_some() && others_move(take, ranked, start..f) {
                 // Keep the first sample: it was genuinely captured; the repeats were not.
                 runs.push(start + 1..f);
             }
@@ -195,13 +229,17 @@ fn stuck_runs(take: &Take, marker: usize, min_len: usize) -> Vec<Range<usize>> {
 /// a static calibration pose in an integer file can repeat values honestly.
 const MOVING_MM: f64 = 5.0;
 
-fn others_move(take: &Take, marker: usize, run: Range<usize>) -> bool {
-    (0..take.marker_count()).filter(|m| *m != marker).any(|m| {
-        match (take.position_mm(run.start, m), take.position_mm(run.end - 1, m)) {
+/// Whether the marker's closest locality neighbours (the first three of `ranked`, which ride
+/// the same body segment) move over `run`. A foot standing on the floor has still neighbours
+/// too; a marker frozen by the tracker does not.
+fn others_move(take: &Take, ranked: &[usize], run: Range<usize>) -> bool {
+    let moving = ranked.iter().take(3).filter(|m| {
+        match (take.position_mm(run.start, **m), take.position_mm(run.end - 1, **m)) {
             (Some(a), Some(b)) => (a - b).norm() > MOVING_MM,
             _ => false,
         }
-    })
+    });
+    moving.count() >= 2
 }
 
 /// Removes every outlier range from `take` (the samples become missing) and returns the
@@ -272,11 +310,30 @@ mod tests {
 
     #[test]
     fn stuck_markers_are_found() {
-        let mut take = smooth_take(100);
+        // Four markers on one moving segment; marker 0 freezes for 10 frames.
+        let names = (0..4).map(|i| MarkerName::parse(&format!("M{i}"))).collect();
+        let mut samples = Vec::new();
+        for f in 0..100 {
+            let base = Vec3::new(3.0 * f as f64, 0.0, 900.0);
+            for k in 0..4 {
+                samples.push(Some(base + Vec3::new(50.0 * k as f64, (k * k) as f64 * 20.0, 0.0)));
+            }
+        }
+        let mut take = Take::from_samples(names, &samples, 120.0).unwrap();
         let p = take.position_mm(40, 0).unwrap();
         for f in 41..50 {
             take.set_position_mm(f, 0, Some(p)).unwrap();
         }
+        // A whole segment standing still (a foot on the floor) is not stuck.
+        let mut still = take.clone();
+        for f in 41..50 {
+            for k in 0..4 {
+                let q = still.position_mm(40, k).unwrap();
+                still.set_position_mm(f, k, Some(q)).unwrap();
+            }
+        }
+        let quiet = OutlierConfig { body_threshold_m_s2: 1e9, ..OutlierConfig::default() };
+        assert!(detect(&still, &quiet).is_empty());
         let found = detect(&take, &OutlierConfig { body_threshold_m_s2: 1e9, ..OutlierConfig::default() });
         assert_eq!(found.len(), 1);
         assert_eq!(found[0].kind, OutlierKind::Stuck);

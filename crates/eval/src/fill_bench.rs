@@ -8,7 +8,7 @@
 //! unfilled, and throughput (take frames filled per second of wall time on one core).
 
 use crate::gap_model::GapModel;
-use locap_clean::{fill_gaps, neighbours::Selection, FillConfig, FillMethod};
+use locap_clean::{FillConfig, FillMethod, fill_gaps, neighbours::Selection};
 use locap_core::Take;
 use rand::SeedableRng;
 use serde::{Deserialize, Serialize};
@@ -97,7 +97,13 @@ pub struct FillBenchReport {
 }
 
 /// Runs the benchmark on `takes` (name, take) with gaps from `model`.
-pub fn run(takes: &[(String, Take)], model: &GapModel, variants: &[Variant], neighbours: usize, seed: u64) -> FillBenchReport {
+pub fn run(
+    takes: &[(String, Take)],
+    model: &GapModel,
+    variants: &[Variant],
+    neighbours: usize,
+    seed: u64,
+) -> FillBenchReport {
     let mut errors: Vec<Vec<(f64, usize)>> = vec![Vec::new(); variants.len()];
     let mut unfilled = vec![0usize; variants.len()];
     let mut seconds = vec![0.0f64; variants.len()];
@@ -150,7 +156,8 @@ pub fn run(takes: &[(String, Take)], model: &GapModel, variants: &[Variant], nei
                         min_frames: lo,
                         max_frames: hi,
                         samples: in_bucket.len(),
-                        mean_mm: (!in_bucket.is_empty()).then(|| in_bucket.iter().sum::<f64>() / in_bucket.len() as f64),
+                        mean_mm: (!in_bucket.is_empty())
+                            .then(|| in_bucket.iter().sum::<f64>() / in_bucket.len() as f64),
                     }
                 })
                 .collect();

@@ -10,8 +10,8 @@
 //! marker sets of the statistics and of the take need not match: fractions are drawn from the
 //! pool, not matched by name.
 
-use locap_core::gaps::Gap;
 use locap_core::GapStatistics;
+use locap_core::gaps::Gap;
 use rand::{Rng, RngExt};
 use serde::{Deserialize, Serialize};
 

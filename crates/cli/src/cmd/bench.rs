@@ -25,8 +25,10 @@ enum What {
 
 /// Arguments of `locap bench fill`.
 #[derive(Parser, Debug)]
-#[command(after_help = "Example:\n  locap bench fill ../shared/data/cmu-c3d/*.c3d ../shared/data/hdm05-c3d/*.c3d \\\n    \
-                        --gap-source ../shared/data/numediart-c3d/03_rolling.c3d --json fill.json")]
+#[command(
+    after_help = "Example:\n  locap bench fill ../shared/data/cmu-c3d/*.c3d ../shared/data/hdm05-c3d/*.c3d \\\n    \
+                        --gap-source ../shared/data/numediart-c3d/03_rolling.c3d --json fill.json"
+)]
 pub struct FillArgs {
     /// Takes with ground truth (gap-free, or nearly: only captured samples are hidden).
     #[arg(required = true, value_name = "TAKE")]

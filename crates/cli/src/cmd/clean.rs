@@ -21,7 +21,9 @@ use std::process::ExitCode;
 
 /// Arguments of `locap clean`.
 #[derive(Parser, Debug)]
-#[command(after_help = "Examples:\n  locap clean take.c3d -o take_clean.c3d\n  locap clean takes/ -o cleaned/ --method edm")]
+#[command(
+    after_help = "Examples:\n  locap clean take.c3d -o take_clean.c3d\n  locap clean takes/ -o cleaned/ --method edm"
+)]
 pub struct Args {
     /// C3D takes, or folders searched recursively.
     #[arg(required = true, value_name = "FILE")]
@@ -236,7 +238,10 @@ fn format_summary(path: &Path, s: &Summary) -> String {
     );
     for (name, gaps, filled, missing, outs) in &s.markers {
         if *gaps > 0 || *outs > 0 || *missing > 0 {
-            let _ = writeln!(t, "  {name:<24} gaps {gaps:>4}  filled {filled:>6}  missing {missing:>6}  outliers {outs:>3}");
+            let _ = writeln!(
+                t,
+                "  {name:<24} gaps {gaps:>4}  filled {filled:>6}  missing {missing:>6}  outliers {outs:>3}"
+            );
         }
     }
     t
