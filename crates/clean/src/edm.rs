@@ -71,11 +71,11 @@ fn fill_gap(out: &mut Filled, source: &Take, marker: usize, gap: Gap, ranked: &[
         }
     };
     let Some(border_matrices) = BorderMatrices::new(out, marker, before, after) else { return };
-    // Offsets at the borders, blended out across the gap.
-    // Which side of the plane of its first three neighbours the marker is on, at the border
-    // nearest to `t`: MDS cannot tell a point set from its mirror image, and with three (always
-    // coplanar) neighbours the fit cannot either, so the side decides.
-    let side_at = |t: usize, chosen: &[usize]| -> Option<f64> {
+    // MDS cannot tell a point set from its mirror image, and with three (always coplanar)
+    // neighbours the fit cannot either. The chirality is decided by the marker carried
+    // rigidly with its neighbours from the nearest border to `t`: the mirror image of the
+    // right answer lies far from it.
+    let hint_at = |t: usize, chosen: &[usize]| -> Option<Vec3> {
         let (b, own) = match (before, after) {
             (Some(b), Some(a)) if t - b <= a - t => (b, border_matrices.marker_before),
             (Some(_), Some(a)) => (a, border_matrices.marker_after),
@@ -83,12 +83,14 @@ fn fill_gap(out: &mut Filled, source: &Take, marker: usize, gap: Gap, ranked: &[
             (None, Some(a)) => (a, border_matrices.marker_after),
             (None, None) => return None,
         };
-        let plane: Vec<Vec3> = chosen.iter().take(3).map(|j| source.position_mm(b, *j)).collect::<Option<_>>()?;
-        signed_side(&plane, &own?)
+        let from: Vec<Vec3> = chosen.iter().map(|j| source.position_mm(b, *j)).collect::<Option<_>>()?;
+        let to: Vec<Vec3> = chosen.iter().map(|j| source.position_mm(t, *j)).collect::<Option<_>>()?;
+        Some(procrustes::align(&from, &to)?.apply(&own?))
     };
+    // Offsets at the borders, blended out across the gap.
     let offset_at = |b: usize| -> Option<Vec3> {
         let chosen = choose(b);
-        let estimate = estimate(&border_matrices, source, &chosen, b, side_at(b, &chosen))?;
+        let estimate = estimate(&border_matrices, source, &chosen, b, hint_at(b, &chosen))?;
         Some(estimate - out.take.position_mm(b, marker)?)
     };
     let offset_before = before.and_then(offset_at);
@@ -99,7 +101,7 @@ fn fill_gap(out: &mut Filled, source: &Take, marker: usize, gap: Gap, ranked: &[
         if chosen.len() < MIN_NEIGHBOURS {
             continue;
         }
-        let Some(mut p) = estimate(&border_matrices, source, &chosen, t, side_at(t, &chosen)) else { continue };
+        let Some(mut p) = estimate(&border_matrices, source, &chosen, t, hint_at(t, &chosen)) else { continue };
         let w = border_matrices.weight(t);
         p -= match (offset_before, offset_after) {
             (Some(a), Some(b)) => a * (1.0 - w) + b * w,
@@ -178,52 +180,31 @@ impl<T> TransposeNone<T> for Option<Option<T>> {
     }
 }
 
-/// Signed distance (mm) of `p` from the plane through three points, `None` when they are
-/// (nearly) collinear or `p` lies (nearly) on the plane: then the side says nothing.
-fn signed_side(plane: &[Vec3], p: &Vec3) -> Option<f64> {
-    let [a, b, c] = plane else { return None };
-    let normal = (b - a).cross(&(c - a));
-    let n = normal.norm();
-    if !(n > 1e-6) {
-        return None;
-    }
-    let d = normal.dot(&(p - a)) / n;
-    (d.abs() > 1.0).then_some(d)
-}
-
 /// The EDM estimate of the marker (index 0 of the distance matrix) at frame `t`, from the
 /// distance matrix interpolated at `t` and the neighbours' observed positions at `t`.
 ///
-/// Both chiralities of the MDS embedding are aligned; the one that puts the marker on the
-/// `side` of its first three neighbours' plane seen at the nearest border wins, or, without a
-/// usable side, the one that fits the neighbours better.
-fn estimate(borders: &BorderMatrices, source: &Take, chosen: &[usize], t: usize, side: Option<f64>) -> Option<Vec3> {
+/// Both chiralities of the MDS embedding are aligned (each by a proper rotation); the one whose
+/// marker lands nearer the `hint` wins, or, without a hint, the one that fits the neighbours
+/// better.
+fn estimate(borders: &BorderMatrices, source: &Take, chosen: &[usize], t: usize, hint: Option<Vec3>) -> Option<Vec3> {
     if chosen.len() < MIN_NEIGHBOURS {
         return None;
     }
     let d = borders.squared_distances(source, chosen, t)?;
     let embedded = classical_mds(&d)?;
     let observed: Vec<Vec3> = chosen.iter().map(|j| source.position_mm(t, *j)).collect::<Option<_>>()?;
-    let candidates: Vec<(f64, Vec3)> = [false, true]
-        .into_iter()
-        .filter_map(|mirror| {
-            let points: Vec<Vec3> =
-                embedded.iter().map(|p| if mirror { Vec3::new(p.x, p.y, -p.z) } else { *p }).collect();
-            let transform = procrustes::align(&points[1..], &observed)?;
-            let error = procrustes::rms_error(&transform, &points[1..], &observed);
-            Some((error, transform.apply(&points[0])))
-        })
-        .collect();
-    if let Some(side) = side {
-        let matching: Vec<&(f64, Vec3)> = candidates
-            .iter()
-            .filter(|(_, p)| signed_side(&observed[..3], p).is_some_and(|s| s.signum() == side.signum()))
-            .collect();
-        if let Some(best) = matching.into_iter().min_by(|a, b| a.0.total_cmp(&b.0)) {
-            return Some(best.1);
-        }
-    }
-    candidates.into_iter().min_by(|a, b| a.0.total_cmp(&b.0)).map(|c| c.1)
+    let candidates = [false, true].into_iter().filter_map(|mirror| {
+        let points: Vec<Vec3> = embedded.iter().map(|p| if mirror { Vec3::new(p.x, p.y, -p.z) } else { *p }).collect();
+        let transform = procrustes::align(&points[1..], &observed)?;
+        let fit = procrustes::rms_error(&transform, &points[1..], &observed);
+        let position = transform.apply(&points[0]);
+        let score = match hint {
+            Some(h) => (position - h).norm(),
+            None => fit,
+        };
+        Some((score, position))
+    });
+    candidates.min_by(|a, b| a.0.total_cmp(&b.0)).map(|c| c.1)
 }
 
 /// Classical (Torgerson) MDS: points in 3D whose squared distances best match `d`.

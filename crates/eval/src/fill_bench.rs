@@ -69,6 +69,9 @@ pub struct MethodResult {
     pub unfilled_samples: usize,
     /// OMPE: mean error over hidden samples, mm.
     pub ompe_mean_mm: f64,
+    /// Mean error over the hidden samples that *every* method filled, mm: the fair comparison
+    /// when some method leaves samples unfilled.
+    pub ompe_common_mm: f64,
     /// Median error, mm.
     pub ompe_median_mm: f64,
     /// 95th percentile error, mm.
@@ -105,12 +108,22 @@ pub fn run(
     seed: u64,
 ) -> FillBenchReport {
     let mut errors: Vec<Vec<(f64, usize)>> = vec![Vec::new(); variants.len()];
+    // Per variant, the error of every hidden sample in one global order (`None` = unfilled),
+    // to score all methods on the samples every one of them filled.
+    let mut per_sample: Vec<Vec<Option<f64>>> = vec![Vec::new(); variants.len()];
     let mut unfilled = vec![0usize; variants.len()];
     let mut seconds = vec![0.0f64; variants.len()];
     let (mut hidden_samples, mut hidden_gaps, mut total_frames) = (0, 0, 0);
     for (index, (_, truth)) in takes.iter().enumerate() {
         let mut rng = rand::rngs::StdRng::seed_from_u64(seed.wrapping_add(index as u64 * 0x9E37_79B9));
-        let gaps = model.sample(truth.frame_count(), truth.marker_count(), |f, m| truth.is_valid(f, m), &mut rng);
+        // Unlabeled points (`*N`) are not markers: no method fills them, so none are hidden.
+        let labeled: Vec<bool> = truth.markers().iter().map(|n| !n.is_unlabeled()).collect();
+        let gaps = model.sample(
+            truth.frame_count(),
+            truth.marker_count(),
+            |f, m| labeled[m] && truth.is_valid(f, m),
+            &mut rng,
+        );
         let mut holed = truth.clone();
         let mut hidden: Vec<(usize, usize, usize)> = Vec::new(); // (frame, marker, gap length)
         for (marker, marker_gaps) in gaps.iter().enumerate() {
@@ -132,16 +145,26 @@ pub fn run(
             seconds[v] += start.elapsed().as_secs_f64();
             for &(f, m, len) in &hidden {
                 match (filled.take.position_mm(f, m), truth.position_mm(f, m)) {
-                    (Some(a), Some(b)) => errors[v].push(((a - b).norm(), len)),
-                    _ => unfilled[v] += 1,
+                    (Some(a), Some(b)) => {
+                        errors[v].push(((a - b).norm(), len));
+                        per_sample[v].push(Some((a - b).norm()));
+                    }
+                    _ => {
+                        unfilled[v] += 1;
+                        per_sample[v].push(None);
+                    }
                 }
             }
         }
     }
+    let common: Vec<bool> = (0..hidden_samples).map(|i| per_sample.iter().all(|errors| errors[i].is_some())).collect();
+    let common_count = common.iter().filter(|c| **c).count();
     let methods = variants
         .iter()
         .enumerate()
         .map(|(v, variant)| {
+            let common_sum: f64 =
+                per_sample[v].iter().zip(&common).filter(|(_, c)| **c).map(|(e, _)| e.unwrap_or(0.0)).sum();
             let e = &errors[v];
             let mut sorted: Vec<f64> = e.iter().map(|x| x.0).collect();
             sorted.sort_by(f64::total_cmp);
@@ -166,6 +189,7 @@ pub fn run(
                 scored_samples: e.len(),
                 unfilled_samples: unfilled[v],
                 ompe_mean_mm: if e.is_empty() { f64::NAN } else { sorted.iter().sum::<f64>() / e.len() as f64 },
+                ompe_common_mm: if common_count == 0 { f64::NAN } else { common_sum / common_count as f64 },
                 ompe_median_mm: pick(0.5),
                 ompe_p95_mm: pick(0.95),
                 by_gap_length,
@@ -196,7 +220,11 @@ impl FillBenchReport {
             self.hidden_samples,
             self.seed
         );
-        let _ = write!(s, "{:<14} {:>9} {:>9} {:>9} {:>9}", "method", "OMPE mm", "median", "p95", "unfilled");
+        let _ = write!(
+            s,
+            "{:<14} {:>9} {:>9} {:>9} {:>9} {:>9}",
+            "method", "OMPE mm", "common", "median", "p95", "unfilled"
+        );
         for (lo, hi) in BUCKETS {
             let label = if hi == usize::MAX { format!("{lo}+ fr") } else { format!("{lo}-{hi} fr") };
             let _ = write!(s, " {label:>9}");
@@ -205,8 +233,8 @@ impl FillBenchReport {
         for m in &self.methods {
             let _ = write!(
                 s,
-                "{:<14} {:>9.2} {:>9.2} {:>9.2} {:>9}",
-                m.method, m.ompe_mean_mm, m.ompe_median_mm, m.ompe_p95_mm, m.unfilled_samples
+                "{:<14} {:>9.2} {:>9.2} {:>9.2} {:>9.2} {:>9}",
+                m.method, m.ompe_mean_mm, m.ompe_common_mm, m.ompe_median_mm, m.ompe_p95_mm, m.unfilled_samples
             );
             for b in &m.by_gap_length {
                 match b.mean_mm {
