@@ -124,3 +124,58 @@ fn bad_input_is_reported_not_panicked() {
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("never overwrites its input"));
 }
+
+/// `locap clean` on a take with real gaps: every gap with visible neighbours is filled, the
+/// captured samples and every parameter but the point bookkeeping are unchanged, and the filled
+/// ranges are listed in `LOCAP:FILLED`.
+#[test]
+fn clean_fills_real_gaps_and_changes_nothing_else() {
+    let Some(data) = shared_data() else { return };
+    let input = data.join("numediart-c3d/03_rolling.c3d");
+    let dir = tempfile::tempdir().unwrap();
+    let output = dir.path().join("clean.c3d");
+    let before = std::fs::read(&input).unwrap();
+    let out = locap().arg("clean").arg(&input).arg("-o").arg(&output).output().unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert_eq!(std::fs::read(&input).unwrap(), before, "input must not change");
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(stdout.contains("0 still missing"), "{stdout}");
+
+    let original = locap_io::c3d::read_path(&input).unwrap();
+    let cleaned = locap_io::c3d::read_path(&output).unwrap();
+    let (a, b) = (original.to_take().unwrap(), cleaned.to_take().unwrap());
+    assert_eq!(b.missing_count(), 0);
+    let outliers = cleaned.parameters.continued_strings("LOCAP", "OUTLIERS");
+    let mut unchanged = 0;
+    for f in 0..a.frame_count() {
+        for m in 0..a.marker_count() {
+            if let Some(p) = a.position_mm(f, m) {
+                let label = &a.markers()[m].full();
+                let frame = a.first_frame as usize + f;
+                let in_outlier = outliers.iter().any(|o| {
+                    let mut parts = o.split_whitespace();
+                    let (Some(l), Some(r)) = (parts.next(), parts.next()) else { return false };
+                    let (s, e) = r.split_once('-').unwrap();
+                    l == label && (s.parse::<usize>().unwrap()..=e.parse::<usize>().unwrap()).contains(&frame)
+                });
+                if !in_outlier {
+                    assert!((b.position_mm(f, m).unwrap() - p).amax() < 1e-3, "captured sample changed");
+                    unchanged += 1;
+                }
+            }
+        }
+    }
+    assert!(unchanged > 100_000);
+    // Every parameter group of the input is carried through.
+    for g in original.parameters.groups() {
+        for p in original.parameters.parameters_of(g.id) {
+            if g.name == "POINT" && p.name == "DATA_START" {
+                continue;
+            }
+            let q = cleaned.parameters.get(&g.name, &p.name).unwrap_or_else(|| panic!("{}:{} lost", g.name, p.name));
+            assert_eq!(q.data, p.data, "{}:{} changed", g.name, p.name);
+        }
+    }
+    assert!(!cleaned.parameters.continued_strings("LOCAP", "FILLED").is_empty());
+    assert_eq!(cleaned.analog, original.analog);
+}

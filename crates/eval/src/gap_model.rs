@@ -88,6 +88,14 @@ impl GapModel {
         GapModel::new(fractions, histogram)
     }
 
+    /// The built-in model: real occlusions of a Qualisys capture (numediart `03_rolling`, 68
+    /// markers, 23% missing, gaps up to 1896 frames; see `data/README.md` of this crate).
+    pub fn builtin() -> GapModel {
+        const JSON: &str = include_str!("../data/real_gaps_numediart_03_rolling.json");
+        // The file is part of the crate and checked by a test: it always parses.
+        GapModel::from_json(JSON).unwrap_or_else(|_| GapModel::uniform(0.1, 120))
+    }
+
     /// A model with a fixed missing fraction and gap lengths uniform in `1..=max_len`.
     pub fn uniform(missing_fraction: f64, max_len: usize) -> GapModel {
         let mut h = vec![1u64; max_len.max(1) + 1];
@@ -198,6 +206,13 @@ mod tests {
         // Same seed, same gaps.
         let mut rng = rand::rngs::StdRng::seed_from_u64(1);
         assert_eq!(model.sample(2000, 10, |_, _| true, &mut rng), gaps);
+    }
+
+    #[test]
+    fn builtin_model_is_the_real_one() {
+        let model = GapModel::builtin();
+        assert_eq!(model.missing_fractions.len(), 68);
+        assert_eq!(model.length_histogram.iter().sum::<u64>(), 215);
     }
 
     #[test]

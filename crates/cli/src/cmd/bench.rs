@@ -37,7 +37,8 @@ pub struct FillArgs {
     #[arg(long, value_enum, default_value_t = Gaps::Real)]
     gaps: Gaps,
     /// Real occlusion statistics: C3D/TRC takes with real gaps (measured), or gap statistics
-    /// JSON (locap's or the LocalMoCap paper's). Default: the real gaps of the takes under test.
+    /// JSON (locap's or the LocalMoCap paper's). Default: the real gaps of the takes under test,
+    /// or, when they have few, the built-in statistics of a real Qualisys capture.
     #[arg(long, value_name = "FILE")]
     gap_source: Vec<PathBuf>,
     /// Longest gap hidden, frames.
@@ -56,6 +57,9 @@ pub struct FillArgs {
     #[arg(long, value_name = "FILE")]
     json: Option<PathBuf>,
 }
+
+/// Fewer real gaps than this in the takes under test say too little about occlusion.
+const MIN_OWN_GAPS: usize = 50;
 
 /// Gap sources.
 #[derive(Debug, Clone, Copy, ValueEnum, PartialEq, Eq)]
@@ -91,7 +95,15 @@ fn fill(args: FillArgs) -> Result<ExitCode> {
             let mut stats = Vec::new();
             let mut models = Vec::new();
             if args.gap_source.is_empty() {
-                stats.extend(takes.iter().map(|(_, t)| locap_core::GapStatistics::of_take(t)));
+                let own: Vec<_> = takes.iter().map(|(_, t)| locap_core::GapStatistics::of_take(t)).collect();
+                if own.iter().map(|s| s.gap_count()).sum::<usize>() >= MIN_OWN_GAPS {
+                    stats.extend(own);
+                } else {
+                    eprintln!(
+                        "the takes have few real gaps: hiding gaps drawn from the built-in real statistics (numediart 03_rolling)"
+                    );
+                    models.push(GapModel::builtin());
+                }
             }
             for source in &args.gap_source {
                 if inputs::has_extension(source, &["json"]) {
