@@ -122,7 +122,7 @@ fn every_real_trc_reads_or_fails_with_a_line() {
             }
             (Some(Expect::ErrorAtLine(line)), Err(e)) => {
                 // Path-level errors name the file, and inside it the line.
-                let Error::InFile { path: p, source } = e else { panic!("{name}: error without file") };
+                let Error::InFile { path: p, error: source } = e else { panic!("{name}: error without file") };
                 assert_eq!(&p, path);
                 match *source {
                     Error::Text { format: "TRC", line: l, .. } => assert_eq!(l, line, "{name} error line"),

@@ -390,8 +390,8 @@ impl C3dFile {
 fn decode_position(w: &[f32; 4]) -> Option<Vec3> {
     let finite = w[0].is_finite() && w[1].is_finite() && w[2].is_finite();
     let all_zero = w[0] == 0.0 && w[1] == 0.0 && w[2] == 0.0;
-    // `!(>= 0)` also treats a NaN residual as missing.
-    if !finite || all_zero || !(w[3] >= 0.0) {
+    // A NaN residual is missing too.
+    if !finite || all_zero || w[3].is_nan() || w[3] < 0.0 {
         return None;
     }
     Some(Vec3::new(w[0] as f64, w[1] as f64, w[2] as f64))

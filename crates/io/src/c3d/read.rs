@@ -83,12 +83,12 @@ pub fn read_with(bytes: &[u8], options: ReadOptions) -> Result<C3dFile> {
         Storage::Float => 4,
     };
     let point_count = header.point_count as usize;
-    if let Some(used) = parameters.get("POINT", "USED").and_then(|p| p.as_i64()) {
-        if used as u16 as usize != point_count {
-            warnings.push(format!(
-                "header says {point_count} points, POINT:USED says {used}; the header defines the data layout"
-            ));
-        }
+    if let Some(used) = parameters.get("POINT", "USED").and_then(|p| p.as_i64())
+        && used as u16 as usize != point_count
+    {
+        warnings.push(format!(
+            "header says {point_count} points, POINT:USED says {used}; the header defines the data layout"
+        ));
     }
     let data_block = match header.data_block {
         0 => parameters.get("POINT", "DATA_START").and_then(|p| p.as_i64()).unwrap_or(0) as u16 as usize,
@@ -197,11 +197,14 @@ fn analog_samples_per_frame(
     if frames == 0 || slack(stated).is_some_and(|r| r < BLOCK) {
         return stated;
     }
-    let better = [channels * header.analog_per_channel as usize, channels * ratio.min(1 << 16)]
-        .into_iter()
-        .filter(|c| *c != stated && *c > 0 && *c <= u16::MAX as usize)
-        .filter_map(|c| slack(c).filter(|r| *r < BLOCK).map(|r| (r, c)))
-        .min();
+    // Saturating: a float ANALOG:USED can be ~1e18 and overflow the product; such a count is
+    // then filtered out as more than 65535 samples.
+    let better =
+        [channels.saturating_mul(header.analog_per_channel as usize), channels.saturating_mul(ratio.min(1 << 16))]
+            .into_iter()
+            .filter(|c| *c != stated && *c > 0 && *c <= u16::MAX as usize)
+            .filter_map(|c| slack(c).filter(|r| *r < BLOCK).map(|r| (r, c)))
+            .min();
     match better {
         Some((_, c)) => {
             warnings.push(format!(
@@ -393,7 +396,6 @@ fn read_parameter(
         return Err(err(at + 1, format!("{ndims} dimensions run past the record end (byte {end})")));
     }
     let dims = bytes[dims_at..dims_at + ndims].to_vec();
-    let count: usize = dims.iter().map(|d| *d as usize).product();
     let size = match kind {
         -1 | 1 => 1,
         2 => 2,
@@ -401,13 +403,20 @@ fn read_parameter(
         other => return Err(err(at, format!("data type {other} is not -1, 1, 2 or 4"))),
     };
     let data_at = dims_at + ndims;
-    let data_end = data_at + count * size;
-    if data_end > end {
-        return Err(err(
-            data_at,
-            format!("{count} values of {size} bytes (dimensions {dims:?}) run past the record end (byte {end})"),
-        ));
-    }
+    // Up to 255 dimensions of up to 255 each: the product overflows usize (fuzzer-found), so
+    // it is computed checked; a size that overflows cannot fit in the record either.
+    let count = dims.iter().try_fold(1usize, |n, d| n.checked_mul(*d as usize));
+    let data_end = count.and_then(|c| c.checked_mul(size)).and_then(|n| n.checked_add(data_at));
+    let data_end = match data_end {
+        Some(e) if e <= end => e,
+        _ => {
+            let count = count.map_or_else(|| "too many".to_string(), |c| c.to_string());
+            return Err(err(
+                data_at,
+                format!("{count} values of {size} bytes (dimensions {dims:?}) run past the record end (byte {end})"),
+            ));
+        }
+    };
     let raw = &bytes[data_at..data_end];
     let data = match kind {
         -1 => ParamData::Char(raw.to_vec()),

@@ -214,13 +214,14 @@ fn encode_parameters(params: &Parameters, blocks_hint: usize) -> Result<Vec<u8>>
 }
 
 fn encode_parameter_payload(p: &Parameter, rec: &mut Vec<u8>) -> Result<()> {
-    let count: usize = p.dims.iter().map(|d| *d as usize).product();
+    // Checked: 255 dimensions of 255 overflow usize (the reader rejects such records too).
+    let count = p.dims.iter().try_fold(1usize, |n, d| n.checked_mul(*d as usize));
     let values = match &p.data {
         ParamData::Char(v) | ParamData::Byte(v) => v.len(),
         ParamData::Int(v) => v.len(),
         ParamData::Float(v) => v.len(),
     };
-    if count != values || p.dims.len() > 255 {
+    if count != Some(values) || p.dims.len() > 255 {
         return Err(Error::Unwritable(format!(
             "parameter {}: dimensions {:?} do not match {values} values",
             p.name, p.dims
