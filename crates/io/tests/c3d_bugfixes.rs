@@ -55,3 +55,18 @@ fn param_dims_overflow_is_an_error() {
     let err = c3d::read(&bytes).unwrap_err().to_string();
     assert!(err.contains("too many values"), "{err}");
 }
+
+/// No points, no analog samples, and `TRIAL:ACTUAL_END_FIELD` saying billions of frames: the
+/// reader looped over every empty frame (a fuzzer timeout). It must return at once.
+#[test]
+fn empty_frames_do_not_hang() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/bugfixes/c3d_empty_frames_hang.c3d");
+    let start = std::time::Instant::now();
+    let result = c3d::read(&std::fs::read(path).unwrap());
+    if let Ok(file) = &result {
+        assert!(file.points.is_empty() && file.analog.is_empty());
+        let mut out = Vec::new();
+        c3d::write(file, &mut out).unwrap();
+    }
+    assert!(start.elapsed().as_secs() < 5, "took {:?}: {result:?}", start.elapsed());
+}

@@ -138,7 +138,11 @@ pub fn read_with(bytes: &[u8], options: ReadOptions) -> Result<C3dFile> {
         Storage::Int => analog_int.reserve(frames * analog_per_frame),
         Storage::Float => analog_float.reserve(frames * analog_per_frame),
     }
-    for f in 0..frames {
+    // With no points and no analog samples there is nothing to read, and the frame count is
+    // not bounded by the file's size (TRIAL:ACTUAL_END_FIELD can say 4 billion): looping
+    // over empty frames hung the fuzzer.
+    let data_frames = if frame_bytes == 0 { 0 } else { frames };
+    for f in 0..data_frames {
         let mut at = data_offset + f * frame_bytes;
         for _ in 0..point_count {
             points.push(match storage {

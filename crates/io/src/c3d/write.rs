@@ -261,6 +261,10 @@ fn signed_len(len: usize, locked: bool) -> u8 {
 fn encode_data(file: &C3dFile, storage: Storage, scale: f32, out: &mut Vec<u8>) -> Result<()> {
     let m = file.point_count;
     let a = file.header.analog_per_frame as usize;
+    if m == 0 && a == 0 {
+        // Empty frames: nothing to write, and `frames` may be in the billions (see the reader).
+        return Ok(());
+    }
     for f in 0..file.frames {
         for w in &file.points[f * m..(f + 1) * m] {
             match storage {
