@@ -8,6 +8,7 @@ use std::path::Path;
 
 fn check(bytes: &[u8]) {
     let Ok(file) = c3d::read(bytes) else { return };
+    let _ = file.analog_info();
     let Ok(take) = file.to_take() else { return };
     if file.point_count == 0 || file.frames == 0 {
         return;
@@ -69,4 +70,14 @@ fn empty_frames_do_not_hang() {
         c3d::write(file, &mut out).unwrap();
     }
     assert!(start.elapsed().as_secs() < 5, "took {:?}: {result:?}", start.elapsed());
+}
+
+/// `ANALOG:USED` stored as a float of 6.6e8: `analog_info` sized its label vectors from it
+/// (a fuzzer out-of-memory). The channel count is now capped at 65535.
+#[test]
+fn huge_analog_used_does_not_allocate_gigabytes() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/bugfixes/c3d_huge_analog_used.c3d");
+    let file = c3d::read(&std::fs::read(path).unwrap()).unwrap();
+    let info = file.analog_info();
+    assert!(info.labels.len() <= 65535 && info.units.len() <= 65535);
 }
