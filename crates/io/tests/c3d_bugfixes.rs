@@ -81,3 +81,13 @@ fn huge_analog_used_does_not_allocate_gigabytes() {
     let info = file.analog_info();
     assert!(info.labels.len() <= 65535 && info.units.len() <= 65535);
 }
+
+/// A parameter whose name is all blanks read as `""`, which the writer rejects: the round
+/// trip failed. Such records are now skipped with a warning.
+#[test]
+fn blank_parameter_names_are_skipped() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/bugfixes/c3d_empty_param_name.c3d");
+    let file = c3d::read(&std::fs::read(path).unwrap()).unwrap();
+    assert!(file.warnings.iter().any(|w| w.contains("not 1-127 bytes")), "{:?}", file.warnings);
+    c3d::write(&file, &mut Vec::new()).unwrap();
+}

@@ -326,7 +326,12 @@ fn read_parameters(
         let payload = offset_at + 2;
         // The last record may point nowhere (offset 0); its payload then ends at the section end.
         let record_end = if next > 0 { (offset_at + next as usize).min(end) } else { end };
-        if id == 0 {
+        if name.is_empty() || name.len() > 127 {
+            // Blank names (and lossy UTF-8 growing past 127 bytes) cannot be written back and
+            // cannot be looked up (fuzzer-found: the round trip failed to write). A skipped
+            // group's parameters get a `GROUPn` group below.
+            warnings.push(format!("record at byte {at} has name {name:?}, not 1-127 bytes; skipped"));
+        } else if id == 0 {
             warnings.push(format!("record {name:?} at byte {at} has group id 0; skipped"));
         } else if id < 0 {
             let desc = description(bytes, payload, record_end);
