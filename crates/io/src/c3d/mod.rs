@@ -235,7 +235,9 @@ impl C3dFile {
             .get("ANALOG", "USED")
             .and_then(|p| p.as_i64())
             .filter(|c| *c > 0)
-            .map(|c| c as usize)
+            // A float ANALOG:USED can say 1e9 channels (fuzzer-found: the label vectors below
+            // took gigabytes); a frame holds at most 65535 samples (header word 3).
+            .map(|c| c.min(u16::MAX as i64) as usize)
             .unwrap_or(0);
         let samples_per_frame = match (channels, self.header.analog_per_frame as usize) {
             (0, _) => 0,

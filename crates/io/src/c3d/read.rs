@@ -138,7 +138,11 @@ pub fn read_with(bytes: &[u8], options: ReadOptions) -> Result<C3dFile> {
         Storage::Int => analog_int.reserve(frames * analog_per_frame),
         Storage::Float => analog_float.reserve(frames * analog_per_frame),
     }
-    for f in 0..frames {
+    // With no points and no analog samples there is nothing to read, and the frame count is
+    // not bounded by the file's size (TRIAL:ACTUAL_END_FIELD can say 4 billion): looping
+    // over empty frames hung the fuzzer.
+    let data_frames = if frame_bytes == 0 { 0 } else { frames };
+    for f in 0..data_frames {
         let mut at = data_offset + f * frame_bytes;
         for _ in 0..point_count {
             points.push(match storage {
@@ -237,11 +241,14 @@ fn analog_samples_per_frame(
     if frames == 0 || slack(stated).is_some_and(|r| r < BLOCK) {
         return stated;
     }
-    let better = [channels * header.analog_per_channel as usize, channels * ratio.min(1 << 16)]
-        .into_iter()
-        .filter(|c| *c != stated && *c > 0 && *c <= u16::MAX as usize)
-        .filter_map(|c| slack(c).filter(|r| *r < BLOCK).map(|r| (r, c)))
-        .min();
+    // Saturating: a float ANALOG:USED can be ~1e18 and overflow the product; such a count is
+    // then filtered out as more than 65535 samples.
+    let better =
+        [channels.saturating_mul(header.analog_per_channel as usize), channels.saturating_mul(ratio.min(1 << 16))]
+            .into_iter()
+            .filter(|c| *c != stated && *c > 0 && *c <= u16::MAX as usize)
+            .filter_map(|c| slack(c).filter(|r| *r < BLOCK).map(|r| (r, c)))
+            .min();
     match better {
         Some((_, c)) => {
             warnings.push(format!(
@@ -359,7 +366,12 @@ fn read_parameters(
         let payload = offset_at + 2;
         // The last record may point nowhere (offset 0); its payload then ends at the section end.
         let record_end = if next > 0 { (offset_at + next as usize).min(end) } else { end };
-        if id == 0 {
+        if name.is_empty() || name.len() > 127 {
+            // Blank names (and lossy UTF-8 growing past 127 bytes) cannot be written back and
+            // cannot be looked up (fuzzer-found: the round trip failed to write). A skipped
+            // group's parameters get a `GROUPn` group below.
+            warnings.push(format!("record at byte {at} has name {name:?}, not 1-127 bytes; skipped"));
+        } else if id == 0 {
             warnings.push(format!("record {name:?} at byte {at} has group id 0; skipped"));
         } else if id < 0 {
             let desc = description(bytes, payload, record_end);
@@ -433,7 +445,6 @@ fn read_parameter(
         return Err(err(at + 1, format!("{ndims} dimensions run past the record end (byte {end})")));
     }
     let dims = bytes[dims_at..dims_at + ndims].to_vec();
-    let count: usize = dims.iter().map(|d| *d as usize).product();
     let size = match kind {
         -1 | 1 => 1,
         2 => 2,
@@ -441,13 +452,20 @@ fn read_parameter(
         other => return Err(err(at, format!("data type {other} is not -1, 1, 2 or 4"))),
     };
     let data_at = dims_at + ndims;
-    let data_end = data_at + count * size;
-    if data_end > end {
-        return Err(err(
-            data_at,
-            format!("{count} values of {size} bytes (dimensions {dims:?}) run past the record end (byte {end})"),
-        ));
-    }
+    // Up to 255 dimensions of up to 255 each: the product overflows usize (fuzzer-found), so
+    // it is computed checked; a size that overflows cannot fit in the record either.
+    let count = dims.iter().try_fold(1usize, |n, d| n.checked_mul(*d as usize));
+    let data_end = count.and_then(|c| c.checked_mul(size)).and_then(|n| n.checked_add(data_at));
+    let data_end = match data_end {
+        Some(e) if e <= end => e,
+        _ => {
+            let count = count.map_or_else(|| "too many".to_string(), |c| c.to_string());
+            return Err(err(
+                data_at,
+                format!("{count} values of {size} bytes (dimensions {dims:?}) run past the record end (byte {end})"),
+            ));
+        }
+    };
     let raw = &bytes[data_at..data_end];
     let data = match kind {
         -1 => ParamData::Char(raw.to_vec()),

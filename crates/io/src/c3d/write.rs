@@ -267,13 +267,14 @@ fn encode_parameters(params: &Parameters, blocks_hint: usize) -> Result<Vec<u8>>
 }
 
 fn encode_parameter_payload(p: &Parameter, rec: &mut Vec<u8>) -> Result<()> {
-    let count: usize = p.dims.iter().map(|d| *d as usize).product();
+    // Checked: 255 dimensions of 255 overflow usize (the reader rejects such records too).
+    let count = p.dims.iter().try_fold(1usize, |n, d| n.checked_mul(*d as usize));
     let values = match &p.data {
         ParamData::Char(v) | ParamData::Byte(v) => v.len(),
         ParamData::Int(v) => v.len(),
         ParamData::Float(v) => v.len(),
     };
-    if count != values || p.dims.len() > 255 {
+    if count != Some(values) || p.dims.len() > 255 {
         return Err(Error::Unwritable(format!(
             "parameter {}: dimensions {:?} do not match {values} values",
             p.name, p.dims
@@ -313,6 +314,10 @@ fn signed_len(len: usize, locked: bool) -> u8 {
 fn encode_data(file: &C3dFile, storage: Storage, scale: f32, out: &mut Vec<u8>) -> Result<()> {
     let m = file.point_count;
     let a = file.header.analog_per_frame as usize;
+    if m == 0 && a == 0 {
+        // Empty frames: nothing to write, and `frames` may be in the billions (see the reader).
+        return Ok(());
+    }
     for f in 0..file.frames {
         for w in &file.points[f * m..(f + 1) * m] {
             match storage {

@@ -1,0 +1,19 @@
+//! Reading arbitrary bytes as C3D must never panic, whatever the options, and a file that
+//! reads must yield a take (or a clean error) without panicking.
+#![no_main]
+
+use libfuzzer_sys::fuzz_target;
+use locap_io::c3d::{self, ReadOptions};
+
+fuzz_target!(|data: &[u8]| {
+    let strict = c3d::read_with(data, ReadOptions { strict: true });
+    if let Ok(file) = c3d::read(data) {
+        let _ = file.to_take();
+        let _ = file.analog_info();
+        let _ = file.manufacturer();
+        // Strict reading differs only in refusing truncated data sections.
+        if let Ok(strict) = strict {
+            assert_eq!(strict.frames, file.frames);
+        }
+    }
+});
