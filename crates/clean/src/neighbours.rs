@@ -27,6 +27,12 @@ const MIN_SHARED_FRAMES: u32 = 10;
 /// Pairs never (or rarely) visible together come last, ordered by index. Cost: one pass over
 /// the take per pair, `O(T M^2)`.
 pub fn rank(take: &Take, selection: Selection) -> Vec<Vec<usize>> {
+    rank_scored(take, selection).into_iter().map(|list| list.into_iter().map(|(j, _)| j).collect()).collect()
+}
+
+/// Like [`rank`], with each neighbour's variance of the distance in mm^2 (`f64::INFINITY` for
+/// pairs seen together too rarely), whatever the ranking.
+pub fn rank_scored(take: &Take, selection: Selection) -> Vec<Vec<(usize, f64)>> {
     let m = take.marker_count();
     let t = take.frame_count();
     // Welford running mean and variance per pair (i < j).
@@ -52,21 +58,22 @@ pub fn rank(take: &Take, selection: Selection) -> Vec<Vec<usize>> {
     }
     (0..m)
         .map(|i| {
-            let mut others: Vec<(bool, f64, usize)> = (0..m)
+            let mut others: Vec<(bool, f64, usize, f64)> = (0..m)
                 .filter(|j| *j != i)
                 .map(|j| {
                     let k = i.min(j) * m + i.max(j);
                     let reliable = count[k] >= MIN_SHARED_FRAMES;
+                    let variance = if reliable { m2[k] / count[k] as f64 } else { f64::INFINITY };
                     let score = match selection {
-                        Selection::Variance => m2[k] / count[k].max(1) as f64,
+                        Selection::Variance => variance,
                         Selection::MeanDistance => mean[k],
                     };
                     // `false` sorts first: reliable pairs before unreliable ones.
-                    (!reliable, if reliable { score } else { 0.0 }, j)
+                    (!reliable, if reliable { score } else { 0.0 }, j, variance)
                 })
                 .collect();
             others.sort_by(|a, b| a.0.cmp(&b.0).then(a.1.total_cmp(&b.1)).then(a.2.cmp(&b.2)));
-            others.into_iter().map(|(_, _, j)| j).collect()
+            others.into_iter().map(|(_, _, j, variance)| (j, variance)).collect()
         })
         .collect()
 }

@@ -31,15 +31,24 @@ impl RigidTransform {
 /// proper rotation (Kabsch). Returns `None` for fewer than 3 points, mismatched lengths, or a
 /// degenerate (collinear) configuration.
 pub fn align(source: &[Vec3], target: &[Vec3]) -> Option<RigidTransform> {
-    if source.len() != target.len() || source.len() < 3 {
+    align_weighted(source, target, &vec![1.0; source.len()])
+}
+
+/// [`align`] with a non-negative weight per point pair (weighted least squares): points that
+/// are known to move less reliably with the others count less.
+pub fn align_weighted(source: &[Vec3], target: &[Vec3], weights: &[f64]) -> Option<RigidTransform> {
+    if source.len() != target.len() || source.len() != weights.len() || source.len() < 3 {
         return None;
     }
-    let n = source.len() as f64;
-    let cs = source.iter().sum::<Vec3>() / n;
-    let ct = target.iter().sum::<Vec3>() / n;
+    let total: f64 = weights.iter().sum();
+    if !(total > 0.0) || weights.iter().any(|w| !(*w >= 0.0)) {
+        return None;
+    }
+    let cs = source.iter().zip(weights).map(|(p, w)| p * *w).sum::<Vec3>() / total;
+    let ct = target.iter().zip(weights).map(|(p, w)| p * *w).sum::<Vec3>() / total;
     let mut h = Matrix3::zeros();
-    for (s, t) in source.iter().zip(target) {
-        h += (s - cs) * (t - ct).transpose();
+    for ((s, t), w) in source.iter().zip(target).zip(weights) {
+        h += (s - cs) * (t - ct).transpose() * *w;
     }
     let svd = h.svd(true, true);
     let (u, v_t) = (svd.u?, svd.v_t?);
@@ -93,6 +102,18 @@ mod tests {
         assert_relative_eq!(t.rotation.matrix().determinant(), 1.0, epsilon = 1e-9);
         // The best proper fit of a mirror image cannot be exact.
         assert!(rms_error(&t, &source, &mirrored) > 1.0);
+    }
+
+    #[test]
+    fn zero_weight_ignores_a_point() {
+        let source = points();
+        let shift = Vec3::new(5.0, -3.0, 2.0);
+        let mut target: Vec<Vec3> = source.iter().map(|p| p + shift).collect();
+        target[4] += Vec3::new(40.0, 0.0, 0.0);
+        let t = align_weighted(&source, &target, &[1.0, 1.0, 1.0, 1.0, 0.0]).unwrap();
+        assert!((t.apply(&source[0]) - target[0]).norm() < 1e-9);
+        assert!(align_weighted(&source, &target, &[0.0; 5]).is_none());
+        assert!(align_weighted(&source, &target, &[1.0, -1.0, 1.0, 1.0, 1.0]).is_none());
     }
 
     #[test]
