@@ -4,6 +4,9 @@
 //!
 //! `cargo bench -p locap-clean`
 
+// criterion_group! generates a public function that cannot carry a doc comment.
+#![allow(missing_docs)]
+
 use criterion::{Criterion, criterion_group, criterion_main};
 use locap_clean::{FillConfig, FillMethod, fill_gaps};
 use locap_core::{MarkerName, Take, Vec3};
