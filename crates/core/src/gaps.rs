@@ -106,7 +106,7 @@ impl GapStatistics {
             .map(|m| {
                 let gaps = gaps_of((0..frames).map(|f| take.is_valid(f, m)));
                 let histogram = histogram(gaps.iter().map(|g| g.len));
-                add_into(&mut all, &histogram);
+                add_histogram(&mut all, &histogram);
                 MarkerGapStatistics {
                     name: take.markers()[m].full(),
                     missing_frames: gaps.iter().map(|g| g.len).sum(),
@@ -150,7 +150,9 @@ fn histogram(lengths: impl Iterator<Item = usize>) -> Vec<usize> {
     h
 }
 
-fn add_into(total: &mut Vec<usize>, h: &[usize]) {
+/// Adds histogram `h` into `total` bin by bin, growing `total` as needed (pooling the
+/// gap-length histograms of several markers or takes).
+pub fn add_histogram(total: &mut Vec<usize>, h: &[usize]) {
     if total.len() < h.len() {
         total.resize(h.len(), 0);
     }

@@ -11,7 +11,7 @@
 //! pool, not matched by name.
 
 use locap_core::GapStatistics;
-use locap_core::gaps::Gap;
+use locap_core::gaps::{Gap, add_histogram};
 use rand::{Rng, RngExt};
 use serde::{Deserialize, Serialize};
 
@@ -32,7 +32,7 @@ pub struct GapModel {
     /// Missing fraction of each marker of the source captures (the pool markers draw from).
     pub missing_fractions: Vec<f64>,
     /// `length_histogram[n]`: number of real gaps of `n` frames.
-    pub length_histogram: Vec<u64>,
+    pub length_histogram: Vec<usize>,
     /// Longest gap hidden, in frames (longer ones in the histogram are ignored).
     pub max_gap_frames: usize,
 }
@@ -41,11 +41,11 @@ impl GapModel {
     /// Pools the statistics of several takes or marker sets.
     pub fn from_statistics<'a>(stats: impl IntoIterator<Item = &'a GapStatistics>) -> Result<GapModel, GapModelError> {
         let mut fractions = Vec::new();
-        let mut histogram: Vec<u64> = Vec::new();
+        let mut histogram: Vec<usize> = Vec::new();
         for s in stats {
             for m in &s.markers {
                 fractions.push(m.missing_fraction());
-                add(&mut histogram, &m.gap_length_histogram);
+                add_histogram(&mut histogram, &m.gap_length_histogram);
             }
         }
         GapModel::new(fractions, histogram)
@@ -70,7 +70,7 @@ impl GapModel {
                     .as_array()
                     .map(|a| a.iter().map(|v| v.as_u64().unwrap_or(0) as usize).collect())
                     .unwrap_or_default();
-                add(&mut histogram, &h);
+                add_histogram(&mut histogram, &h);
             }
             Ok(())
         };
@@ -96,14 +96,21 @@ impl GapModel {
         GapModel::from_json(JSON).unwrap_or_else(|_| GapModel::uniform(0.1, 120))
     }
 
+    /// Pools another model into this one (fractions and length counts).
+    pub fn merge(&mut self, other: &GapModel) {
+        self.missing_fractions.extend(&other.missing_fractions);
+        add_histogram(&mut self.length_histogram, &other.length_histogram);
+        self.max_gap_frames = self.max_gap_frames.max(other.max_gap_frames);
+    }
+
     /// A model with a fixed missing fraction and gap lengths uniform in `1..=max_len`.
     pub fn uniform(missing_fraction: f64, max_len: usize) -> GapModel {
-        let mut h = vec![1u64; max_len.max(1) + 1];
+        let mut h = vec![1usize; max_len.max(1) + 1];
         h[0] = 0;
         GapModel { missing_fractions: vec![missing_fraction], length_histogram: h, max_gap_frames: max_len.max(1) }
     }
 
-    fn new(missing_fractions: Vec<f64>, length_histogram: Vec<u64>) -> Result<GapModel, GapModelError> {
+    fn new(missing_fractions: Vec<f64>, length_histogram: Vec<usize>) -> Result<GapModel, GapModelError> {
         if length_histogram.iter().skip(1).all(|c| *c == 0) {
             return Err(GapModelError::NoGaps);
         }
@@ -114,16 +121,17 @@ impl GapModel {
     /// Draws one gap length from the histogram (lengths above `max_gap_frames` excluded).
     fn draw_length(&self, rng: &mut impl Rng) -> usize {
         let top = self.max_gap_frames.min(self.length_histogram.len() - 1);
-        let total: u64 = self.length_histogram[1..=top].iter().sum();
+        let total: usize = self.length_histogram[1..=top].iter().sum();
         if total == 0 {
             return 1;
         }
-        let mut pick = rng.random_range(0..total);
+        // Drawn as u64 so the seeded gap sequence does not depend on the platform's usize.
+        let mut pick = rng.random_range(0..total as u64);
         for (len, count) in self.length_histogram.iter().enumerate().take(top + 1).skip(1) {
-            if pick < *count {
+            if pick < *count as u64 {
                 return len;
             }
-            pick -= count;
+            pick -= *count as u64;
         }
         top
     }
@@ -174,15 +182,6 @@ impl GapModel {
     }
 }
 
-fn add(total: &mut Vec<u64>, h: &[usize]) {
-    if total.len() < h.len() {
-        total.resize(h.len(), 0);
-    }
-    for (t, v) in total.iter_mut().zip(h) {
-        *t += *v as u64;
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -212,7 +211,7 @@ mod tests {
     fn builtin_model_is_the_real_one() {
         let model = GapModel::builtin();
         assert_eq!(model.missing_fractions.len(), 68);
-        assert_eq!(model.length_histogram.iter().sum::<u64>(), 215);
+        assert_eq!(model.length_histogram.iter().sum::<usize>(), 215);
     }
 
     #[test]

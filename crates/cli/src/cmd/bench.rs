@@ -120,14 +120,8 @@ fn fill(args: FillArgs) -> Result<ExitCode> {
                     "the takes have no real gaps to learn from: give --gap-source (e.g. a take with real occlusions)",
                 )?
             };
-            for m in models {
-                model.missing_fractions.extend(m.missing_fractions);
-                for (i, c) in m.length_histogram.iter().enumerate() {
-                    if model.length_histogram.len() <= i {
-                        model.length_histogram.resize(i + 1, 0);
-                    }
-                    model.length_histogram[i] += c;
-                }
+            for m in &models {
+                model.merge(m);
             }
             model
         }
