@@ -1,5 +1,7 @@
 //! BVH and ASF/AMC against the shared CMU data, plus property tests of the BVH writer.
 
+mod common;
+
 use locap_core::{EulerOrder, Joint, LengthUnit, Motion, Quat, Skeleton, Vec3};
 use locap_io::Error;
 use locap_io::asf_amc::{read_amc, read_amc_path, read_asf, read_asf_path};
@@ -7,15 +9,8 @@ use locap_io::bvh::{read_bvh, read_bvh_path, write_bvh, write_bvh_path};
 use proptest::prelude::*;
 use std::path::PathBuf;
 
-/// `../shared/data` of the project, or `None` (with a note) where this checkout lacks it.
 fn data_dir() -> Option<PathBuf> {
-    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data");
-    if dir.is_dir() {
-        Some(dir)
-    } else {
-        eprintln!("skipping: ../shared/data not found (looked in {})", dir.display());
-        None
-    }
+    common::shared_data()
 }
 
 /// Every joint's distance to its parent equals its rest offset in every frame (rigid bones).

@@ -1,5 +1,7 @@
 //! TRC and CSV against real files from several exporters, round trips, and hostile input.
 
+mod common;
+
 use locap_core::{LengthUnit, MarkerName, Take, Vec3};
 use locap_io::Error;
 use locap_io::csv::{read_csv, write_csv, write_csv_path};
@@ -7,15 +9,8 @@ use locap_io::trc::{read_trc, read_trc_file, read_trc_file_path, read_trc_path, 
 use proptest::prelude::*;
 use std::path::{Path, PathBuf};
 
-/// The shared sample data, next to the repository (not shipped with it).
 fn data_dir() -> Option<PathBuf> {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data/trc");
-    if dir.is_dir() {
-        Some(dir)
-    } else {
-        println!("skipping: ../shared/data not found");
-        None
-    }
+    common::shared_data().map(|d| d.join("trc"))
 }
 
 /// Every `.trc` below `dir`, sorted, as (path relative to `dir`, full path).
