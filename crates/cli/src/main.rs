@@ -73,11 +73,15 @@ pub fn report_failure(path: &std::path::Path, err: &anyhow::Error) {
     }
 }
 
-/// A progress bar over `len` takes on standard error. indicatif draws nothing when standard
-/// error is not a terminal (CI logs, render-farm jobs), and a single take needs no bar.
+/// A progress bar over `len` takes on standard error; for a single take, a spinner that shows
+/// the work is alive. indicatif draws nothing when standard error is not a terminal (CI logs,
+/// render-farm jobs).
 pub fn progress(len: usize, what: &str) -> indicatif::ProgressBar {
     if len < 2 {
-        return indicatif::ProgressBar::hidden();
+        let spinner = indicatif::ProgressBar::new_spinner();
+        spinner.set_message(format!("{what}..."));
+        spinner.enable_steady_tick(std::time::Duration::from_millis(120));
+        return spinner;
     }
     let bar = indicatif::ProgressBar::new(len as u64);
     let style = indicatif::ProgressStyle::with_template("{msg} [{bar:40}] {pos}/{len} ({eta})")
