@@ -29,6 +29,7 @@ pub mod local_frame;
 pub mod neighbours;
 pub mod outliers;
 pub mod procrustes;
+pub mod swaps;
 
 use locap_core::Take;
 use serde::{Deserialize, Serialize};

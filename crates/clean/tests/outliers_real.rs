@@ -70,3 +70,23 @@ fn clean_takes_keep_their_impacts() {
     let found = outliers::detect(&take, &OutlierConfig::default());
     assert!(found.len() <= 3, "{} outliers in a clean take: {:?}", found.len(), &found[..found.len().min(5)]);
 }
+
+#[test]
+fn swapped_labels_in_real_takes_are_found_and_undone() {
+    use locap_clean::swaps::{self, Swap, SwapConfig};
+    let config = SwapConfig::default();
+    for rel in ["cmu-c3d/85_02.c3d", "cmu-c3d/135_02.c3d", "hdm05-c3d/HDM_bd_05-01_01_120.c3d"] {
+        let Some(take) = read(rel) else { return };
+        let found = swaps::detect(&take, &config);
+        assert!(found.is_empty(), "{rel}: clean take reported swaps {found:?}");
+    }
+    let Some(truth) = read("cmu-c3d/85_02.c3d") else { return };
+    let (a, b) = (truth.marker_index("LFWT").unwrap(), truth.marker_index("LKNE").unwrap());
+    let (a, b) = (a.min(b), a.max(b));
+    let mut swapped = truth.clone();
+    swaps::unswap(&mut swapped, &[Swap { a, b, frames: 200..320 }]);
+    let found = swaps::detect(&swapped, &config);
+    assert_eq!(found, vec![Swap { a, b, frames: 200..320 }]);
+    swaps::unswap(&mut swapped, &found);
+    assert_eq!(swapped, truth);
+}

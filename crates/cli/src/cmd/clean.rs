@@ -1,17 +1,19 @@
 //! `locap clean`: fill occlusion gaps and remove outliers (LocalMoCap section 3.1), one take
 //! per job.
 //!
-//! Order of work for a take: outliers are detected on the raw data and removed, every gap
+//! Order of work for a take: swapped labels are detected and exchanged back, outliers are
+//! detected and removed, every gap
 //! (occlusions and removed outliers alike) is filled with the chosen method, then the
 //! outlier windows are refilled with a cubic spline through the now-complete trajectory, as
 //! the paper does. Filled samples get residual 0 (the C3D convention for "not measured") and
-//! are listed, frame ranges per marker, in the C3D parameters `LOCAP:FILLED` and
-//! `LOCAP:OUTLIERS`, so any C3D viewer shows what locap changed.
+//! are listed, frame ranges per marker, in the C3D parameters `LOCAP:FILLED`,
+//! `LOCAP:OUTLIERS` and `LOCAP:SWAPS`, so any C3D viewer shows what locap changed.
 
 use crate::inputs;
 use anyhow::{Context, Result, bail};
 use clap::{Parser, ValueEnum};
 use locap_clean::outliers::{self, OutlierConfig};
+use locap_clean::swaps::{self, SwapConfig};
 use locap_clean::{FillConfig, FillMethod, neighbours::Selection};
 use locap_core::Take;
 use locap_io::c3d;
@@ -40,7 +42,7 @@ pub struct Args {
     /// How neighbours are ranked.
     #[arg(long, value_enum, default_value_t = Ranking::Variance, help_heading = "Filling")]
     ranking: Ranking,
-    /// Detect and remove outliers (acceleration peaks, stuck markers).
+    /// Detect and repair outliers: swapped labels, acceleration spikes, stuck markers.
     #[arg(long, value_enum, default_value_t = Switch::On, help_heading = "Outliers")]
     outliers: Switch,
     /// Acceleration prominence that makes a body marker sample an outlier, m/s^2.
@@ -104,6 +106,7 @@ struct Summary {
     still_missing: usize,
     outliers: usize,
     outlier_samples: usize,
+    swaps: usize,
     /// Per marker: (label, gaps, filled samples, still missing, outlier ranges).
     markers: Vec<(String, usize, usize, usize, usize)>,
 }
@@ -148,7 +151,9 @@ fn clean_one(input: &Path, output: &Path, args: &Args) -> Result<Summary> {
         bail!("{}: input and output are the same file; locap never overwrites its input", input.display());
     }
     let mut file = c3d::read_path(input)?;
-    let raw = file.to_take().map_err(|e| e.in_file(input))?;
+    let mut raw = file.to_take().map_err(|e| e.in_file(input))?;
+    let swapped = if args.outliers == Switch::On { swaps::detect(&raw, &SwapConfig::default()) } else { Vec::new() };
+    swaps::unswap(&mut raw, &swapped);
     let config = OutlierConfig {
         body_threshold_m_s2: args.body_threshold,
         hand_threshold_m_s2: args.hand_threshold,
@@ -167,7 +172,8 @@ fn clean_one(input: &Path, output: &Path, args: &Args) -> Result<Summary> {
     };
     let mut filled = locap_clean::fill_gaps(&holed, &fill);
     locap_clean::refill_outliers(&mut filled, &found);
-    let summary = summarize(&raw, &filled.take, &filled.filled, &removed, &found);
+    let mut summary = summarize(&raw, &filled.take, &filled.filled, &removed, &found);
+    summary.swaps = swapped.len();
     let labels: Vec<String> = raw.markers().iter().map(|m| m.full()).collect();
     file.set_take(&filled.take).map_err(|e| e.in_file(input))?;
     let filled_ranges = ranges(&filled.take, &filled.filled, &labels);
@@ -185,6 +191,14 @@ fn clean_one(input: &Path, output: &Path, args: &Args) -> Result<Summary> {
         .collect();
     file.parameters.set_continued_strings("LOCAP", "FILLED", &filled_ranges);
     file.parameters.set_continued_strings("LOCAP", "OUTLIERS", &outlier_ranges);
+    let swap_ranges: Vec<String> = swapped
+        .iter()
+        .map(|s| {
+            let first = raw.first_frame as usize + s.frames.start;
+            format!("{} {} {}-{}", labels[s.a], labels[s.b], first, raw.first_frame as usize + s.frames.end - 1)
+        })
+        .collect();
+    file.parameters.set_continued_strings("LOCAP", "SWAPS", &swap_ranges);
     file.parameters.set_strings("LOCAP", "METHOD", &[format!("{:?} K={}", fill.method, fill.neighbours)]);
     c3d::write_path(&file, output)?;
     Ok(summary)
@@ -228,13 +242,14 @@ fn format_summary(path: &Path, s: &Summary) -> String {
     let mut t = String::new();
     let _ = writeln!(
         t,
-        "{}: {} gaps, {} samples filled, {} still missing; {} outliers ({} samples) removed and refilled",
+        "{}: {} gaps, {} samples filled, {} still missing; {} outliers ({} samples) removed and refilled; {} label swaps undone",
         path.display(),
         s.gaps,
         s.filled_samples,
         s.still_missing,
         s.outliers,
-        s.outlier_samples
+        s.outlier_samples,
+        s.swaps
     );
     for (name, gaps, filled, missing, outs) in &s.markers {
         if *gaps > 0 || *outs > 0 || *missing > 0 {
