@@ -22,6 +22,19 @@
 //!
 //! Every method returns a [`Filled`] take with the mask of the samples it computed, so a
 //! writer can mark them and a benchmark can score exactly them.
+//!
+//! # Outliers and swaps
+//! [`outliers`] finds acceleration spikes that reverse direction and markers frozen while
+//! their segment moves; [`outliers::remove`] turns them into gaps and [`refill_outliers`]
+//! refills them with a cubic spline after the main fill, as the paper does. [`swaps`] finds
+//! two markers that trade labels and exchanges them back.
+//!
+//! # Local frames
+//! [`local_frame`] builds the waist and wrist coordinate systems in which the learned stages
+//! see the markers (section 3.1, last paragraph).
+//!
+//! Nothing here reads files or knows about the command line: every function takes and returns
+//! `locap-core` types, so tests and the benchmark call them directly.
 
 pub mod baseline;
 pub mod edm;
