@@ -32,6 +32,7 @@ use crate::procrustes;
 use locap_core::gaps::{Gap, gaps_of};
 use locap_core::{Take, Vec3};
 use nalgebra::{DMatrix, SymmetricEigen};
+use rayon::prelude::*;
 
 /// Variance floor (mm^2) of the alignment weights (see `fill_gap`).
 const STEADY_FLOOR_MM2: f64 = 25.0;
@@ -44,21 +45,33 @@ pub fn fill(take: &Take, k: usize, selection: Selection) -> Filled {
     let ranked = neighbours::rank_scored(take, selection);
     let mut out = Filled::unchanged(take);
     let k = k.max(MIN_NEIGHBOURS);
+    let m = take.marker_count();
     for pass in 0..2 {
-        // Pass 0 uses captured neighbours only; pass 1 also filled ones.
+        // Pass 0 uses captured neighbours only; pass 1 also filled ones. Within a pass every
+        // marker reads only the pass's starting state, so markers are filled in parallel and
+        // the result does not depend on their order.
         let source = if pass == 0 { take.clone() } else { out.take.clone() };
-        for (marker, ranked) in ranked.iter().enumerate() {
-            let gaps = gaps_of((0..take.frame_count()).map(|f| out.take.is_valid(f, marker)));
-            for gap in gaps {
-                fill_gap(&mut out, &source, marker, gap, ranked, k);
+        let fills: Vec<(usize, Vec<(usize, Vec3)>)> = ranked
+            .par_iter()
+            .enumerate()
+            .map(|(marker, ranked)| {
+                let gaps = gaps_of((0..source.frame_count()).map(|f| source.is_valid(f, marker)));
+                (marker, gaps.into_iter().flat_map(|gap| fill_gap(&source, marker, gap, ranked, k)).collect())
+            })
+            .collect();
+        for (marker, samples) in fills {
+            for (t, p) in samples {
+                if out.take.set_position_mm(t, marker, Some(p)).is_ok() {
+                    out.filled[t * m + marker] = true;
+                }
             }
         }
     }
     out
 }
 
-/// Fills one gap of `marker` in `out`, reading neighbours from `source`.
-fn fill_gap(out: &mut Filled, source: &Take, marker: usize, gap: Gap, ranked: &[(usize, f64)], k: usize) {
+/// The filled samples `(frame, position)` of one gap of `marker`, from `source`.
+fn fill_gap(source: &Take, marker: usize, gap: Gap, ranked: &[(usize, f64)], k: usize) -> Vec<(usize, Vec3)> {
     // Procrustes weights: a neighbour whose distance to the marker varies by `s` mm counts
     // `1 / (s^2 + 5^2)`: the steadiest neighbours carry the alignment, none dominates alone.
     let mut weight_of = vec![0.0; source.marker_count()];
@@ -70,7 +83,7 @@ fn fill_gap(out: &mut Filled, source: &Take, marker: usize, gap: Gap, ranked: &[
     let before = gap.start.checked_sub(1);
     let after = (gap.end() < frames).then_some(gap.end());
     if before.is_none() && after.is_none() {
-        return; // never visible: nothing to measure distances from
+        return Vec::new(); // never visible: nothing to measure distances from
     }
     let borders: Vec<usize> = before.iter().chain(after.iter()).copied().collect();
     let candidates: Vec<usize> =
@@ -84,7 +97,7 @@ fn fill_gap(out: &mut Filled, source: &Take, marker: usize, gap: Gap, ranked: &[
             candidates.iter().copied().filter(|j| source.is_valid(t, *j)).take(k).collect()
         }
     };
-    let Some(border_matrices) = BorderMatrices::new(out, marker, before, after) else { return };
+    let Some(border_matrices) = BorderMatrices::new(source, marker, before, after) else { return Vec::new() };
     // MDS cannot tell a point set from its mirror image, and with three (always coplanar)
     // neighbours the fit cannot either. The chirality is decided by the marker carried
     // rigidly with its neighbours from the nearest border to `t`: the mirror image of the
@@ -105,11 +118,11 @@ fn fill_gap(out: &mut Filled, source: &Take, marker: usize, gap: Gap, ranked: &[
     let offset_at = |b: usize| -> Option<Vec3> {
         let chosen = choose(b);
         let estimate = estimate(&border_matrices, source, &chosen, &weight_of, b, hint_at(b, &chosen))?;
-        Some(estimate - out.take.position_mm(b, marker)?)
+        Some(estimate - source.position_mm(b, marker)?)
     };
     let offset_before = before.and_then(offset_at);
     let offset_after = after.and_then(offset_at);
-    let m = source.marker_count();
+    let mut filled = Vec::with_capacity(gap.len);
     for t in gap.start..gap.end() {
         let chosen = choose(t);
         if chosen.len() < MIN_NEIGHBOURS {
@@ -125,10 +138,11 @@ fn fill_gap(out: &mut Filled, source: &Take, marker: usize, gap: Gap, ranked: &[
             (None, Some(b)) => b,
             (None, None) => Vec3::zeros(),
         };
-        if out.take.set_position_mm(t, marker, Some(p)).is_ok() {
-            out.filled[t * m + marker] = true;
+        if p.iter().all(|v| v.is_finite()) {
+            filled.push((t, p));
         }
     }
+    filled
 }
 
 /// Positions at the gap borders, from which distance matrices are built for any neighbour set.
@@ -141,9 +155,9 @@ struct BorderMatrices {
 }
 
 impl BorderMatrices {
-    fn new(out: &Filled, marker: usize, before: Option<usize>, after: Option<usize>) -> Option<Self> {
-        let marker_before = before.map(|b| out.take.position_mm(b, marker)).transpose_none()?;
-        let marker_after = after.map(|b| out.take.position_mm(b, marker)).transpose_none()?;
+    fn new(source: &Take, marker: usize, before: Option<usize>, after: Option<usize>) -> Option<Self> {
+        let marker_before = before.map(|b| source.position_mm(b, marker)).transpose_none()?;
+        let marker_after = after.map(|b| source.position_mm(b, marker)).transpose_none()?;
         Some(BorderMatrices { before, after, marker_before, marker_after })
     }
 
