@@ -39,3 +39,46 @@ fn walk(dir: &Path, extensions: &[&str], out: &mut Vec<PathBuf>) -> Result<()> {
 pub fn has_extension(path: &Path, extensions: &[&str]) -> bool {
     path.extension().and_then(|e| e.to_str()).is_some_and(|e| extensions.iter().any(|x| x.eq_ignore_ascii_case(e)))
 }
+
+/// Where each of `files` goes under `out_dir`: its path relative to the folder all inputs
+/// share, so takes with the same name in different folders (`hands/x.c3d`, `sample_37/x.c3d`)
+/// never overwrite each other. `extension` replaces the file's own when given.
+pub fn output_paths(files: &[PathBuf], out_dir: &Path, extension: Option<&str>) -> Vec<PathBuf> {
+    let parents: Vec<PathBuf> = files.iter().map(|f| f.parent().map(Path::to_path_buf).unwrap_or_default()).collect();
+    let mut common = parents.first().cloned().unwrap_or_default();
+    for p in &parents[1.min(parents.len())..] {
+        while !p.starts_with(&common) {
+            if !common.pop() {
+                break;
+            }
+        }
+    }
+    files
+        .iter()
+        .map(|f| {
+            let relative = f
+                .strip_prefix(&common)
+                .map(Path::to_path_buf)
+                .unwrap_or_else(|_| f.file_name().map(PathBuf::from).unwrap_or_default());
+            let target = out_dir.join(relative);
+            match extension {
+                Some(ext) => target.with_extension(ext),
+                None => target,
+            }
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn same_names_in_different_folders_do_not_collide() {
+        let files = vec![PathBuf::from("data/hands/x.c3d"), PathBuf::from("data/c3d/s37/x.c3d")];
+        let out = output_paths(&files, Path::new("out"), None);
+        assert_eq!(out, vec![PathBuf::from("out/hands/x.c3d"), PathBuf::from("out/c3d/s37/x.c3d")]);
+        let one = output_paths(&[PathBuf::from("a/b/take.c3d")], Path::new("o"), Some("trc"));
+        assert_eq!(one, vec![PathBuf::from("o/take.trc")]);
+    }
+}

@@ -119,13 +119,13 @@ pub fn run(args: Args) -> Result<ExitCode> {
         std::fs::create_dir_all(&args.output)
             .with_context(|| format!("{}: cannot create output folder", args.output.display()))?;
     }
+    let targets = if single { vec![args.output.clone()] } else { inputs::output_paths(&files, &args.output, None) };
     let bar = crate::progress(files.len(), "cleaning");
     let results: Vec<(PathBuf, Result<Summary>)> = files
         .par_iter()
-        .map(|input| {
-            let target =
-                if single { args.output.clone() } else { args.output.join(input.file_name().unwrap_or_default()) };
-            let result = clean_one(input, &target, &args);
+        .zip(&targets)
+        .map(|(input, target)| {
+            let result = create_parent(target).and_then(|_| clean_one(input, target, &args));
             bar.inc(1);
             (input.clone(), result)
         })
@@ -144,6 +144,14 @@ pub fn run(args: Args) -> Result<ExitCode> {
     }
     crate::emit(&text)?;
     Ok(if failed > 0 { ExitCode::from(1) } else { ExitCode::SUCCESS })
+}
+
+/// Creates the folder a batch output goes into (it mirrors the input's subfolder).
+fn create_parent(target: &Path) -> Result<()> {
+    if let Some(dir) = target.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).with_context(|| format!("{}: cannot create folder", dir.display()))?;
+    }
+    Ok(())
 }
 
 fn clean_one(input: &Path, output: &Path, args: &Args) -> Result<Summary> {

@@ -69,14 +69,20 @@ pub fn run(args: Args) -> Result<ExitCode> {
     let ext = args.to.as_deref().context("converting several files needs --to c3d|trc|csv|bvh and an output folder")?;
     let files = inputs::expand(inputs, &["c3d", "trc", "csv", "bvh", "amc"])?;
     std::fs::create_dir_all(output).with_context(|| format!("{}: cannot create output folder", output.display()))?;
+    let targets = inputs::output_paths(&files, output, Some(ext));
     let bar = crate::progress(files.len(), "converting");
     let failed: usize = files
         .par_iter()
-        .map(|input| {
+        .zip(&targets)
+        .map(|(input, target)| {
             let _tick = Tick(&bar);
-            let stem = input.file_stem().unwrap_or_default();
-            let target = output.join(stem).with_extension(ext);
-            match convert(input, &target, &args) {
+            let made = match target.parent() {
+                Some(dir) => {
+                    std::fs::create_dir_all(dir).with_context(|| format!("{}: cannot create folder", dir.display()))
+                }
+                None => Ok(()),
+            };
+            match made.and_then(|_| convert(input, target, &args)) {
                 Ok(()) => 0,
                 Err(err) => {
                     crate::report_failure(input, &err);
