@@ -69,6 +69,14 @@ pub fn output_paths(files: &[PathBuf], out_dir: &Path, extension: Option<&str>) 
         .collect()
 }
 
+/// Creates the folder a batch output goes into (it mirrors the input's subfolder).
+pub fn create_parent(target: &Path) -> Result<()> {
+    if let Some(dir) = target.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).with_context(|| format!("{}: cannot create folder", dir.display()))?;
+    }
+    Ok(())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -91,3 +91,37 @@ pub fn progress(len: usize, what: &str) -> indicatif::ProgressBar {
     bar.set_message(what.to_string());
     bar
 }
+
+/// Runs `job` on every take in parallel (one take = one job) behind a progress bar, reports
+/// each failure as `path: reason` without stopping the others, and returns the successes in
+/// input order with the number of failures.
+pub fn run_takes<T: Send>(
+    files: &[std::path::PathBuf],
+    what: &str,
+    job: impl Fn(usize, &std::path::Path) -> anyhow::Result<T> + Sync,
+) -> (Vec<(std::path::PathBuf, T)>, usize) {
+    use rayon::prelude::*;
+    let bar = progress(files.len(), what);
+    let results: Vec<anyhow::Result<T>> = files
+        .par_iter()
+        .enumerate()
+        .map(|(i, path)| {
+            let result = job(i, path);
+            bar.inc(1);
+            result
+        })
+        .collect();
+    bar.finish_and_clear();
+    let mut failed = 0;
+    let mut done = Vec::new();
+    for (path, result) in files.iter().zip(results) {
+        match result {
+            Ok(value) => done.push((path.clone(), value)),
+            Err(err) => {
+                failed += 1;
+                report_failure(path, &err);
+            }
+        }
+    }
+    (done, failed)
+}

@@ -17,7 +17,6 @@ use locap_clean::swaps::{self, SwapConfig};
 use locap_clean::{FillConfig, FillMethod, neighbours::Selection};
 use locap_core::Take;
 use locap_io::c3d;
-use rayon::prelude::*;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
@@ -120,38 +119,13 @@ pub fn run(args: Args) -> Result<ExitCode> {
             .with_context(|| format!("{}: cannot create output folder", args.output.display()))?;
     }
     let targets = if single { vec![args.output.clone()] } else { inputs::output_paths(&files, &args.output, None) };
-    let bar = crate::progress(files.len(), "cleaning");
-    let results: Vec<(PathBuf, Result<Summary>)> = files
-        .par_iter()
-        .zip(&targets)
-        .map(|(input, target)| {
-            let result = create_parent(target).and_then(|_| clean_one(input, target, &args));
-            bar.inc(1);
-            (input.clone(), result)
-        })
-        .collect();
-    bar.finish_and_clear();
-    let mut failed = 0;
-    let mut text = String::new();
-    for (path, result) in results {
-        match result {
-            Ok(summary) => text.push_str(&format_summary(&path, &summary)),
-            Err(err) => {
-                failed += 1;
-                crate::report_failure(&path, &err);
-            }
-        }
-    }
+    let (done, failed) = crate::run_takes(&files, "cleaning", |i, input| {
+        inputs::create_parent(&targets[i])?;
+        clean_one(input, &targets[i], &args)
+    });
+    let text: String = done.iter().map(|(path, summary)| format_summary(path, summary)).collect();
     crate::emit(&text)?;
     Ok(if failed > 0 { ExitCode::from(1) } else { ExitCode::SUCCESS })
-}
-
-/// Creates the folder a batch output goes into (it mirrors the input's subfolder).
-fn create_parent(target: &Path) -> Result<()> {
-    if let Some(dir) = target.parent().filter(|d| !d.as_os_str().is_empty()) {
-        std::fs::create_dir_all(dir).with_context(|| format!("{}: cannot create folder", dir.display()))?;
-    }
-    Ok(())
 }
 
 fn clean_one(input: &Path, output: &Path, args: &Args) -> Result<Summary> {

@@ -9,7 +9,6 @@ use anyhow::{Context, Result, bail};
 use clap::Parser;
 use locap_core::{LengthUnit, Take};
 use locap_io::{asf_amc, bvh, c3d, csv, trc};
-use rayon::prelude::*;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
@@ -70,28 +69,10 @@ pub fn run(args: Args) -> Result<ExitCode> {
     let files = inputs::expand(inputs, &["c3d", "trc", "csv", "bvh", "amc"])?;
     std::fs::create_dir_all(output).with_context(|| format!("{}: cannot create output folder", output.display()))?;
     let targets = inputs::output_paths(&files, output, Some(ext));
-    let bar = crate::progress(files.len(), "converting");
-    let failed: usize = files
-        .par_iter()
-        .zip(&targets)
-        .map(|(input, target)| {
-            let _tick = Tick(&bar);
-            let made = match target.parent() {
-                Some(dir) => {
-                    std::fs::create_dir_all(dir).with_context(|| format!("{}: cannot create folder", dir.display()))
-                }
-                None => Ok(()),
-            };
-            match made.and_then(|_| convert(input, target, &args)) {
-                Ok(()) => 0,
-                Err(err) => {
-                    crate::report_failure(input, &err);
-                    1
-                }
-            }
-        })
-        .sum();
-    bar.finish_and_clear();
+    let (_, failed) = crate::run_takes(&files, "converting", |i, input| {
+        inputs::create_parent(&targets[i])?;
+        convert(input, &targets[i], &args)
+    });
     eprintln!("converted {} of {} files into {}", files.len() - failed, files.len(), output.display());
     Ok(if failed > 0 { ExitCode::from(1) } else { ExitCode::SUCCESS })
 }
@@ -163,13 +144,4 @@ fn write_markers(take: &Take, output: &Path, args: &Args) -> Result<()> {
         other => bail!("{}: unknown output format {other:?} (c3d, trc, csv, bvh)", output.display()),
     }
     Ok(())
-}
-
-/// Advances the progress bar when a take's job ends, however it ends.
-struct Tick<'a>(&'a indicatif::ProgressBar);
-
-impl Drop for Tick<'_> {
-    fn drop(&mut self) {
-        self.0.inc(1);
-    }
 }

@@ -5,7 +5,6 @@ use anyhow::Result;
 use clap::Parser;
 use locap_core::GapStatistics;
 use locap_io::c3d;
-use rayon::prelude::*;
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -52,27 +51,8 @@ pub struct TakeInfo {
 /// Runs `locap info`.
 pub fn run(args: Args) -> Result<ExitCode> {
     let files = inputs::expand(&args.files, &["c3d", "trc", "csv", "bvh", "asf"])?;
-    let bar = crate::progress(files.len(), "reading");
-    let results: Vec<(PathBuf, Result<Info>)> = files
-        .par_iter()
-        .map(|p| {
-            let result = describe(p);
-            bar.inc(1);
-            (p.clone(), result)
-        })
-        .collect();
-    bar.finish_and_clear();
-    let mut failed = 0;
-    let mut infos = Vec::new();
-    for (path, result) in results {
-        match result {
-            Ok(info) => infos.push(info),
-            Err(err) => {
-                failed += 1;
-                crate::report_failure(&path, &err);
-            }
-        }
-    }
+    let (done, failed) = crate::run_takes(&files, "reading", |_, path| describe(path));
+    let infos: Vec<Info> = done.into_iter().map(|(_, info)| info).collect();
     let text = if args.json {
         let mut text = if infos.len() == 1 && files.len() == 1 {
             serde_json::to_string_pretty(&infos[0])?
