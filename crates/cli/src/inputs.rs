@@ -69,6 +69,69 @@ pub fn output_paths(files: &[PathBuf], out_dir: &Path, extension: Option<&str>) 
         .collect()
 }
 
+/// Reads a marker take from a C3D or TRC file (chosen by extension; anything else is read as
+/// C3D, whose reader says clearly when it is not).
+pub fn read_take(path: &Path) -> Result<locap_core::Take> {
+    if has_extension(path, &["trc"]) {
+        Ok(locap_io::trc::read_trc_path(path)?)
+    } else {
+        Ok(locap_io::c3d::read_path(path)?.to_take().map_err(|e| e.in_file(path))?)
+    }
+}
+
+/// How skeleton motion files are read.
+#[derive(Debug, Clone, Default)]
+pub struct MotionOptions {
+    /// The ASF skeleton of AMC files; `None`: the only `.asf` file in the AMC's folder.
+    pub asf: Option<PathBuf>,
+    /// Millimetres per BVH length unit (BVH does not say; CMU BVH uses ASF units,
+    /// 25.4 / 0.45 mm).
+    pub bvh_mm_per_unit: f64,
+    /// Frame rate of AMC files, Hz (AMC does not say; CMU is 120 Hz).
+    pub amc_rate_hz: f64,
+}
+
+/// Reads skeleton motion from a BVH file or an AMC file (with its ASF skeleton).
+pub fn read_motion(path: &Path, options: &MotionOptions) -> Result<locap_core::Motion> {
+    if has_extension(path, &["bvh"]) {
+        let motion = locap_io::bvh::read_bvh_path(path, locap_core::LengthUnit::Millimetre)?;
+        let s = options.bvh_mm_per_unit;
+        if !(s.is_finite() && s > 0.0) {
+            bail!("--bvh-mm-per-unit {s} is not a positive number");
+        }
+        return Ok(locap_synth::synthesize::scale_motion(&motion, &vec![s; motion.skeleton.len()], s)?);
+    }
+    if !has_extension(path, &["amc"]) {
+        bail!("{}: not a motion file (expected .bvh or .amc)", path.display());
+    }
+    let asf_path = match &options.asf {
+        Some(p) => p.clone(),
+        None => {
+            let dir = path.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
+            let mut found = Vec::new();
+            walk_flat(dir, &mut found)?;
+            match found.as_slice() {
+                [one] => one.clone(),
+                [] => bail!("{}: no .asf skeleton next to it; give --asf", path.display()),
+                _ => bail!("{}: several .asf files next to it; give --asf", path.display()),
+            }
+        }
+    };
+    let asf = locap_io::asf_amc::read_asf_path(&asf_path)?;
+    Ok(locap_io::asf_amc::read_amc_path(path, &asf, options.amc_rate_hz)?)
+}
+
+/// The `.asf` files directly in `dir`.
+fn walk_flat(dir: &Path, out: &mut Vec<PathBuf>) -> Result<()> {
+    for entry in std::fs::read_dir(dir).with_context(|| format!("{}: cannot list folder", dir.display()))? {
+        let path = entry?.path();
+        if path.is_file() && has_extension(&path, &["asf"]) {
+            out.push(path);
+        }
+    }
+    Ok(())
+}
+
 /// Creates the folder a batch output goes into (it mirrors the input's subfolder).
 pub fn create_parent(target: &Path) -> Result<()> {
     if let Some(dir) = target.parent().filter(|d| !d.as_os_str().is_empty()) {

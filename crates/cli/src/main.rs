@@ -32,6 +32,8 @@ enum Command {
     Clean(cmd::clean::Args),
     /// Measure accuracy and speed against baselines on real takes.
     Bench(cmd::bench::Args),
+    /// Marker layouts: calibrate offsets on real takes with their solved motion.
+    Layout(cmd::layout::Args),
 }
 
 fn main() -> ExitCode {
@@ -41,6 +43,7 @@ fn main() -> ExitCode {
         Command::Convert(args) => cmd::convert::run(args),
         Command::Clean(args) => cmd::clean::run(args),
         Command::Bench(args) => cmd::bench::run(args),
+        Command::Layout(args) => cmd::layout::run(args),
     };
     match result {
         Ok(code) => code,

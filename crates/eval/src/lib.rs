@@ -9,4 +9,6 @@
 //! exactly the hidden samples.
 
 pub mod fill_bench;
-pub mod gap_model;
+/// Moved to `locap-synth` (the training-data augmentation and the benchmark share one gap
+/// model); re-exported so `locap_eval::gap_model` keeps working.
+pub use locap_synth::gap_model;

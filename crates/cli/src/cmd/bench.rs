@@ -1,7 +1,7 @@
 //! `locap bench`: accuracy and speed measured on real takes, against baselines run in the
 //! same process on the same data.
 
-use crate::inputs;
+use crate::inputs::{self, read_take};
 use anyhow::{Context, Result, bail};
 use clap::{Parser, Subcommand, ValueEnum};
 use locap_eval::fill_bench::{self, Variant};
@@ -74,14 +74,6 @@ pub enum Gaps {
 pub fn run(args: Args) -> Result<ExitCode> {
     match args.what {
         What::Fill(a) => fill(a),
-    }
-}
-
-fn read_take(path: &std::path::Path) -> Result<locap_core::Take> {
-    if inputs::has_extension(path, &["trc"]) {
-        Ok(locap_io::trc::read_trc_path(path)?)
-    } else {
-        Ok(locap_io::c3d::read_path(path)?.to_take().map_err(|e| e.in_file(path))?)
     }
 }
 

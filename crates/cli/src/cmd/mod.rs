@@ -4,3 +4,4 @@ pub mod bench;
 pub mod clean;
 pub mod convert;
 pub mod info;
+pub mod layout;

@@ -1,0 +1,166 @@
+//! `locap layout`: calibrate and fit marker layouts (issue 5; LocalMoCap section 4 places
+//! markers on a driven body, and locap needs those placements from real captures).
+
+use crate::inputs::{self, MotionOptions, read_motion, read_take};
+use anyhow::{Context, Result, bail};
+use clap::{Parser, Subcommand, ValueEnum};
+use locap_synth::Layout;
+use locap_synth::calibrate::{CalibrationOptions, calibrate};
+use locap_synth::synthesize::LabFrame;
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+
+/// Arguments of `locap layout`.
+#[derive(Parser, Debug)]
+pub struct Args {
+    #[command(subcommand)]
+    what: What,
+}
+
+#[derive(Subcommand, Debug)]
+enum What {
+    /// Fit a layout's marker offsets by least squares to real labeled takes and the skeleton
+    /// motion solved from them (same frames), and report per-marker residuals.
+    Calibrate(CalibrateArgs),
+}
+
+/// Arguments of `locap layout calibrate`.
+#[derive(Parser, Debug)]
+#[command(
+    after_help = "Example (the shipped CMU layout):\n  locap layout calibrate --layout crates/synth/layouts/cmu41-template.toml \\\n    \
+                        --take ../shared/data/cmu-c3d/01_01.c3d --motion ../shared/data/cmu-asfamc/01/01_01.amc \\\n    \
+                        --take ../shared/data/cmu-c3d/02_01.c3d --motion ../shared/data/cmu-asfamc/02/02_01.amc \\\n    \
+                        -o crates/synth/layouts/cmu41.toml"
+)]
+pub struct CalibrateArgs {
+    /// Layout to calibrate (TOML or JSON): marker names, joints and blends; offsets are fitted.
+    #[arg(long, value_name = "LAYOUT", help_heading = "Input")]
+    layout: PathBuf,
+    /// Real labeled takes (C3D or TRC), one per --motion, in the same order.
+    #[arg(long = "take", required = true, value_name = "TAKE", help_heading = "Input")]
+    takes: Vec<PathBuf>,
+    /// Skeleton motion (AMC or BVH) solved from each take, frame for frame.
+    #[arg(long = "motion", required = true, value_name = "MOTION", help_heading = "Input")]
+    motions: Vec<PathBuf>,
+    /// ASF skeleton for AMC files (default: the only .asf next to each AMC).
+    #[arg(long, value_name = "ASF", help_heading = "Input")]
+    asf: Option<PathBuf>,
+    /// Millimetres per BVH unit (CMU BVH: 25.4 / 0.45).
+    #[arg(long, default_value_t = 25.4 / 0.45, value_name = "MM", help_heading = "Input")]
+    bvh_mm_per_unit: f64,
+    /// How the takes' lab frame relates to the motion frame.
+    #[arg(long, value_enum, default_value_t = Lab::ZUpFromYUp, help_heading = "Input")]
+    lab: Lab,
+    /// Try every joint for markers without a blend and keep the best.
+    #[arg(long, help_heading = "Fit")]
+    search_joints: bool,
+    /// Calibrated layout to write (TOML; JSON if the name ends in .json).
+    #[arg(short, long, value_name = "FILE", help_heading = "Output")]
+    output: PathBuf,
+    /// Also write the residual report as JSON.
+    #[arg(long, value_name = "FILE", help_heading = "Output")]
+    report: Option<PathBuf>,
+}
+
+/// Lab frames on the command line.
+#[derive(Debug, Clone, Copy, ValueEnum, PartialEq, Eq)]
+pub enum Lab {
+    /// Z-up lab, Y-up motion (CMU): lab (X, Y, Z) = motion (z, x, y).
+    ZUpFromYUp,
+    /// The takes are in the motion's own frame.
+    Motion,
+}
+
+impl From<Lab> for LabFrame {
+    fn from(lab: Lab) -> LabFrame {
+        match lab {
+            Lab::ZUpFromYUp => LabFrame::ZUpFromYUp,
+            Lab::Motion => LabFrame::Motion,
+        }
+    }
+}
+
+/// Runs `locap layout`.
+pub fn run(args: Args) -> Result<ExitCode> {
+    match args.what {
+        What::Calibrate(a) => run_calibrate(a),
+    }
+}
+
+/// Reads a layout file (TOML, or JSON by extension).
+pub fn read_layout(path: &Path) -> Result<Layout> {
+    let text = std::fs::read_to_string(path).with_context(|| format!("{}: cannot read layout", path.display()))?;
+    let layout =
+        if inputs::has_extension(path, &["json"]) { Layout::from_json(&text) } else { Layout::from_toml(&text) };
+    layout.with_context(|| format!("{}", path.display()))
+}
+
+/// Writes a layout (TOML, or JSON by extension) atomically.
+pub fn write_layout(layout: &Layout, path: &Path) -> Result<()> {
+    let text =
+        if inputs::has_extension(path, &["json"]) { serde_json::to_string_pretty(layout)? } else { layout.to_toml() };
+    locap_io::atomic::write_atomically(path, |w| Ok(w.write_all(text.as_bytes())?))?;
+    Ok(())
+}
+
+fn run_calibrate(args: CalibrateArgs) -> Result<ExitCode> {
+    if args.takes.len() != args.motions.len() {
+        bail!("give one --motion per --take ({} takes, {} motions)", args.takes.len(), args.motions.len());
+    }
+    let layout = read_layout(&args.layout)?;
+    let options = MotionOptions { asf: args.asf.clone(), bvh_mm_per_unit: args.bvh_mm_per_unit, amc_rate_hz: 120.0 };
+    let lab: LabFrame = args.lab.into();
+    let mut pairs = Vec::new();
+    for (t, m) in args.takes.iter().zip(&args.motions) {
+        let take = lab.take_to_motion(&read_take(t)?);
+        let motion = read_motion(m, &options)?;
+        pairs.push((take, motion));
+    }
+    let refs: Vec<_> = pairs.iter().map(|(t, m)| (t, m)).collect();
+    let cal = CalibrationOptions { search_joints: args.search_joints, ..Default::default() };
+    let (mut fitted, report) = calibrate(&layout, &refs, &cal)?;
+    let names: Vec<String> = args
+        .takes
+        .iter()
+        .map(|t| t.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default())
+        .collect();
+    fitted.description = format!(
+        "{}; offsets calibrated by least squares on {} (locap layout calibrate), RMS residual {:.1} mm",
+        layout.description.trim_end_matches('.'),
+        names.join(" + "),
+        report.rms_mm()
+    );
+    write_layout(&fitted, &args.output)?;
+    let mut table = format!("{:<8} {:<24} {:>10}", "marker", "joint (blend)", "rms mm");
+    for n in &names {
+        let _ = write!(table, " {n:>10}");
+    }
+    table.push('\n');
+    for m in &report.markers {
+        let joint = match &m.blend {
+            Some((b, w)) => format!("{} ({b} {w:.2})", m.joint),
+            None => m.joint.clone(),
+        };
+        let _ = write!(table, "{:<8} {:<24} {:>10.1}", m.name, joint, m.rms_mm);
+        for r in &m.rms_mm_per_take {
+            match r {
+                Some(r) => {
+                    let _ = write!(table, " {r:>10.1}");
+                }
+                None => {
+                    let _ = write!(table, " {:>10}", "-");
+                }
+            }
+        }
+        table.push('\n');
+    }
+    let _ = writeln!(table, "all markers: RMS residual {:.1} mm", report.rms_mm());
+    crate::emit(&table)?;
+    if let Some(path) = &args.report {
+        let text = serde_json::to_string_pretty(&report)?;
+        locap_io::atomic::write_atomically(path, |w| Ok(w.write_all(text.as_bytes())?))?;
+    }
+    eprintln!("wrote {}", args.output.display());
+    Ok(ExitCode::SUCCESS)
+}

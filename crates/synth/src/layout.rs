@@ -1,0 +1,357 @@
+//! Marker layouts: which marker rides on which joint, and where (LocalMoCap section 4: the
+//! synthetic dataset places markers on a driven body).
+//!
+//! # File format (TOML)
+//! A layout is a human-editable TOML file (JSON with the same fields also works, see
+//! [`Layout::from_json`]):
+//!
+//! ```toml
+//! name = "cmu-41"
+//! description = "CMU/HDM05 41-marker Vicon set on the CMU ASF skeleton"
+//!
+//! # Optional: other names of a joint in other skeletons (BVH exports rename joints).
+//! [aliases]
+//! lfemur = ["LeftHip", "LeftUpLeg"]
+//!
+//! [[marker]]
+//! name = "LKNE"             # marker label, as in the C3D files
+//! joint = "lfemur"          # the joint (segment) it rides on
+//! offset_mm = [95.0, -380.0, 12.0]   # position in that joint's frame, millimetres
+//! region = "body"           # body | left_hand | right_hand
+//! soft_tissue = 1.0         # optional: scales the soft-tissue wobble (default 1)
+//! # Optional: a marker near a joint slides between two segments, like skin. Its position is
+//! # (1 - weight) * (on `joint`) + weight * (on `blend.joint`).
+//! blend = { joint = "ltibia", weight = 0.5, offset_mm = [95.0, 20.0, 12.0] }
+//! ```
+//!
+//! Offsets are in the *joint's* frame: `global = P_joint + R_joint * offset_mm` with the
+//! joint's global position and rotation from forward kinematics
+//! ([`locap_core::skeleton::forward_kinematics`]). In an ASF or CMU BVH skeleton every joint
+//! frame is aligned with the world (Y up) at rest, so offsets read as rest-pose displacements.
+//! A blend without `offset_mm` takes the marker's rest-pose position and expresses it in the
+//! second joint's frame.
+
+use locap_core::skeleton::forward_kinematics;
+use locap_core::{GlobalPose, Quat, Skeleton, Vec3};
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+
+/// Errors reading or binding a layout.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum LayoutError {
+    /// The TOML or JSON text does not parse.
+    #[error("layout does not parse: {0}")]
+    Parse(String),
+    /// Two markers share a name.
+    #[error("marker {0:?} is listed twice")]
+    DuplicateMarker(String),
+    /// A layout with no markers.
+    #[error("the layout has no markers")]
+    Empty,
+    /// A marker's joint (or one of its aliases) is not in the skeleton.
+    #[error("marker {marker:?} rides on joint {joint:?}, which the skeleton does not have (nor any alias of it)")]
+    UnknownJoint {
+        /// Marker name.
+        marker: String,
+        /// Joint name in the layout.
+        joint: String,
+    },
+    /// A blend weight outside `[0, 1]` or a non-finite number.
+    #[error("marker {marker:?}: {what} is not valid ({value})")]
+    BadNumber {
+        /// Marker name.
+        marker: String,
+        /// Which field.
+        what: &'static str,
+        /// The value.
+        value: f64,
+    },
+}
+
+/// Which part of the body a marker belongs to (the paper solves body and hands apart).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum Region {
+    /// Body (trunk, head, limbs).
+    #[default]
+    Body,
+    /// Left hand and fingers.
+    LeftHand,
+    /// Right hand and fingers.
+    RightHand,
+}
+
+/// A second segment a marker partly follows.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Blend {
+    /// The second joint.
+    pub joint: String,
+    /// How much the marker follows the second joint, in `[0, 1]`.
+    pub weight: f64,
+    /// Offset in the second joint's frame, mm; `None`: the rest-pose position of the marker.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub offset_mm: Option<[f64; 3]>,
+}
+
+/// One marker of a layout.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct LayoutMarker {
+    /// Marker label.
+    pub name: String,
+    /// Joint the marker rides on.
+    pub joint: String,
+    /// Position in the joint's frame, millimetres.
+    pub offset_mm: [f64; 3],
+    /// Body region.
+    #[serde(default)]
+    pub region: Region,
+    /// Optional second segment.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub blend: Option<Blend>,
+    /// Scale of the soft-tissue wobble for this marker (1 = the take's amplitude).
+    #[serde(default = "one", skip_serializing_if = "is_one")]
+    pub soft_tissue: f64,
+}
+
+fn one() -> f64 {
+    1.0
+}
+
+fn is_one(v: &f64) -> bool {
+    *v == 1.0
+}
+
+/// A marker layout (see the module docs for the file format).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Layout {
+    /// Short name.
+    pub name: String,
+    /// What the layout is and where its offsets come from.
+    #[serde(default)]
+    pub description: String,
+    /// Other names of joints in other skeletons (layout joint name -> alternatives, tried in
+    /// order when the skeleton has no joint of the layout's name).
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub aliases: BTreeMap<String, Vec<String>>,
+    /// The markers, in output order.
+    #[serde(rename = "marker")]
+    pub markers: Vec<LayoutMarker>,
+}
+
+impl Layout {
+    /// Parses a TOML layout and checks it.
+    pub fn from_toml(text: &str) -> Result<Layout, LayoutError> {
+        let layout: Layout = toml::from_str(text).map_err(|e| LayoutError::Parse(e.to_string()))?;
+        layout.check()?;
+        Ok(layout)
+    }
+
+    /// Parses a JSON layout (same fields as TOML) and checks it.
+    pub fn from_json(text: &str) -> Result<Layout, LayoutError> {
+        let layout: Layout = serde_json::from_str(text).map_err(|e| LayoutError::Parse(e.to_string()))?;
+        layout.check()?;
+        Ok(layout)
+    }
+
+    /// The layout as TOML text.
+    pub fn to_toml(&self) -> String {
+        // Every field is a string, number, array or table: serialisation cannot fail.
+        toml::to_string(self).unwrap_or_default()
+    }
+
+    /// The CMU/HDM05 41-marker Vicon set on the CMU ASF skeleton, calibrated on CMU takes
+    /// 01_01 and 02_01 (`layouts/cmu41.toml`; see `layouts/README.md`).
+    pub fn cmu41() -> Layout {
+        const TOML: &str = include_str!("../layouts/cmu41.toml");
+        // Shipped with the crate and parsed by a test.
+        Layout::from_toml(TOML).unwrap_or_else(|e| panic!("built-in layout cmu41.toml: {e}"))
+    }
+
+    /// Checks names, numbers and weights.
+    pub fn check(&self) -> Result<(), LayoutError> {
+        if self.markers.is_empty() {
+            return Err(LayoutError::Empty);
+        }
+        let mut seen = std::collections::HashSet::new();
+        for m in &self.markers {
+            if !seen.insert(m.name.as_str()) {
+                return Err(LayoutError::DuplicateMarker(m.name.clone()));
+            }
+            let bad = |what, value| LayoutError::BadNumber { marker: m.name.clone(), what, value };
+            if let Some(v) = m.offset_mm.iter().find(|v| !v.is_finite()) {
+                return Err(bad("offset_mm", *v));
+            }
+            if !(m.soft_tissue.is_finite() && m.soft_tissue >= 0.0) {
+                return Err(bad("soft_tissue", m.soft_tissue));
+            }
+            if let Some(b) = &m.blend {
+                if !(0.0..=1.0).contains(&b.weight) {
+                    return Err(bad("blend.weight", b.weight));
+                }
+                if let Some(v) = b.offset_mm.iter().flatten().find(|v| !v.is_finite()) {
+                    return Err(bad("blend.offset_mm", *v));
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Index of the joint called `name` (or one of its aliases) in `skeleton`.
+    pub fn resolve_joint(&self, skeleton: &Skeleton, name: &str) -> Option<usize> {
+        skeleton.index_of(name).or_else(|| self.aliases.get(name)?.iter().find_map(|alt| skeleton.index_of(alt)))
+    }
+
+    /// Resolves joint names against `skeleton` and fills in blend offsets from its rest pose.
+    pub fn bind(&self, skeleton: &Skeleton) -> Result<BoundLayout, LayoutError> {
+        self.check()?;
+        let rest = forward_kinematics(skeleton, &vec![Quat::identity(); skeleton.len()], Vec3::zeros());
+        let joint = |m: &LayoutMarker, name: &str| {
+            self.resolve_joint(skeleton, name)
+                .ok_or_else(|| LayoutError::UnknownJoint { marker: m.name.clone(), joint: name.to_string() })
+        };
+        let mut markers = Vec::with_capacity(self.markers.len());
+        for m in &self.markers {
+            let j = joint(m, &m.joint)?;
+            let offset = Vec3::from(m.offset_mm);
+            let blend = match &m.blend {
+                Some(b) if b.weight > 0.0 => {
+                    let k = joint(m, &b.joint)?;
+                    let offset_k = match b.offset_mm {
+                        Some(o) => Vec3::from(o),
+                        None => {
+                            let at_rest = rest.positions_mm[j] + rest.rotations[j] * offset;
+                            rest.rotations[k].inverse() * (at_rest - rest.positions_mm[k])
+                        }
+                    };
+                    Some(BoundBlend { joint: k, weight: b.weight, offset_mm: offset_k })
+                }
+                _ => None,
+            };
+            markers.push(BoundMarker { joint: j, offset_mm: offset, blend, soft_tissue: m.soft_tissue });
+        }
+        Ok(BoundLayout { names: self.markers.iter().map(|m| m.name.clone()).collect(), markers })
+    }
+}
+
+/// A blend resolved to a joint index.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BoundBlend {
+    /// Second joint index.
+    pub joint: usize,
+    /// Weight of the second joint.
+    pub weight: f64,
+    /// Offset in the second joint's frame, mm.
+    pub offset_mm: Vec3,
+}
+
+/// A marker resolved against a skeleton.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BoundMarker {
+    /// Joint index.
+    pub joint: usize,
+    /// Offset in the joint's frame, mm.
+    pub offset_mm: Vec3,
+    /// Second segment, if any.
+    pub blend: Option<BoundBlend>,
+    /// Soft-tissue scale.
+    pub soft_tissue: f64,
+}
+
+impl BoundMarker {
+    /// Global position in `pose` with the offsets displaced by `extra_mm` (in the joint frames;
+    /// soft tissue and jitter), millimetres.
+    pub fn position_mm(&self, pose: &GlobalPose, extra_mm: Vec3) -> Vec3 {
+        let on = |joint: usize, offset: Vec3| pose.positions_mm[joint] + pose.rotations[joint] * (offset + extra_mm);
+        let a = on(self.joint, self.offset_mm);
+        match &self.blend {
+            Some(b) => a * (1.0 - b.weight) + on(b.joint, b.offset_mm) * b.weight,
+            None => a,
+        }
+    }
+}
+
+/// A layout bound to one skeleton: joint indices instead of names.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BoundLayout {
+    /// Marker names, in layout order.
+    pub names: Vec<String>,
+    /// The markers, in layout order.
+    pub markers: Vec<BoundMarker>,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use locap_core::{EulerOrder, Joint};
+
+    pub(crate) fn arm() -> Skeleton {
+        let joint = |name: &str, parent: Option<usize>, o: [f64; 3]| Joint {
+            name: name.into(),
+            parent,
+            offset_mm: Vec3::from(o),
+            rotation_order: EulerOrder::ZXY,
+            is_end_site: false,
+        };
+        Skeleton::new(vec![
+            joint("root", None, [0.0; 3]),
+            joint("upper", Some(0), [0.0, 0.0, 0.0]),
+            joint("lower", Some(1), [300.0, 0.0, 0.0]),
+        ])
+        .unwrap()
+    }
+
+    const TEXT: &str = r#"
+name = "test"
+[aliases]
+upper = ["UpperArm"]
+[[marker]]
+name = "A"
+joint = "upper"
+offset_mm = [150.0, 40.0, 0.0]
+[[marker]]
+name = "ELB"
+joint = "upper"
+offset_mm = [300.0, 30.0, 0.0]
+region = "left_hand"
+blend = { joint = "lower", weight = 0.5 }
+"#;
+
+    #[test]
+    fn parses_binds_and_round_trips() {
+        let layout = Layout::from_toml(TEXT).unwrap();
+        assert_eq!(layout.markers[1].region, Region::LeftHand);
+        let bound = layout.bind(&arm()).unwrap();
+        // The blend offset is the rest position in the lower joint's frame.
+        assert_eq!(bound.markers[1].blend.as_ref().unwrap().offset_mm, Vec3::new(0.0, 30.0, 0.0));
+        let again = Layout::from_toml(&layout.to_toml()).unwrap();
+        assert_eq!(again, layout);
+        let json = serde_json::to_string(&layout).unwrap();
+        assert_eq!(Layout::from_json(&json).unwrap(), layout);
+    }
+
+    #[test]
+    fn rejects_bad_layouts_with_reasons() {
+        let dup = TEXT.replace("name = \"ELB\"", "name = \"A\"");
+        assert_eq!(Layout::from_toml(&dup), Err(LayoutError::DuplicateMarker("A".into())));
+        let weight = TEXT.replace("weight = 0.5", "weight = 1.5");
+        assert!(matches!(Layout::from_toml(&weight), Err(LayoutError::BadNumber { what: "blend.weight", .. })));
+        assert!(matches!(Layout::from_toml("name = 3"), Err(LayoutError::Parse(_))));
+        let unknown = Layout::from_toml(&TEXT.replace("joint = \"lower\"", "joint = \"shin\"")).unwrap();
+        assert!(matches!(unknown.bind(&arm()), Err(LayoutError::UnknownJoint { .. })));
+    }
+
+    #[test]
+    fn aliases_resolve() {
+        let layout = Layout::from_toml(TEXT).unwrap();
+        let mut joints = arm().joints().to_vec();
+        joints[1].name = "UpperArm".into();
+        let sk = Skeleton::new(joints).unwrap();
+        assert_eq!(layout.bind(&sk).unwrap().markers[0].joint, 1);
+    }
+
+    #[test]
+    fn builtin_cmu_layout_has_41_markers() {
+        let layout = Layout::cmu41();
+        assert_eq!(layout.markers.len(), 41);
+    }
+}
