@@ -8,7 +8,9 @@
 //! first, each at a random position where it overlaps no earlier gap and leaves at least one
 //! visible frame on each side, so every hidden sample has ground truth and real borders. The
 //! marker sets of the statistics and of the take need not match: fractions are drawn from the
-//! pool, not matched by name.
+//! pool, not matched by name. [`GapModel::sample`] is the benchmark's sampler; training data
+//! uses the exact Eq. 6 counts of [`crate::augment`], which match markers by name where the
+//! statistics name them ([`GapModel::marker_names`]).
 
 use locap_core::GapStatistics;
 use locap_core::gaps::{Gap, add_histogram};
@@ -31,6 +33,11 @@ pub enum GapModelError {
 pub struct GapModel {
     /// Missing fraction of each marker of the source captures (the pool markers draw from).
     pub missing_fractions: Vec<f64>,
+    /// Label of each entry of `missing_fractions` (subject prefix removed; empty where the
+    /// statistics do not name it), so a take's markers can use their own occlusion
+    /// probability (Eq. 6's per-marker `p_occ,i`).
+    #[serde(default)]
+    pub marker_names: Vec<String>,
     /// `length_histogram[n]`: number of real gaps of `n` frames.
     pub length_histogram: Vec<usize>,
     /// Longest gap hidden, in frames (longer ones in the histogram are ignored).
@@ -41,14 +48,16 @@ impl GapModel {
     /// Pools the statistics of several takes or marker sets.
     pub fn from_statistics<'a>(stats: impl IntoIterator<Item = &'a GapStatistics>) -> Result<GapModel, GapModelError> {
         let mut fractions = Vec::new();
+        let mut names = Vec::new();
         let mut histogram: Vec<usize> = Vec::new();
         for s in stats {
             for m in &s.markers {
                 fractions.push(m.missing_fraction());
+                names.push(label_of(&m.name));
                 add_histogram(&mut histogram, &m.gap_length_histogram);
             }
         }
-        GapModel::new(fractions, histogram)
+        GapModel::new(fractions, names, histogram)
     }
 
     /// Reads gap statistics JSON: either [`GapStatistics`] (what `locap info --json` prints
@@ -57,6 +66,7 @@ impl GapModel {
     pub fn from_json(text: &str) -> Result<GapModel, GapModelError> {
         let value: serde_json::Value = serde_json::from_str(text).map_err(|e| GapModelError::Json(e.to_string()))?;
         let mut fractions = Vec::new();
+        let mut names = Vec::new();
         let mut histogram = Vec::new();
         let mut read_markers = |markers: &serde_json::Value| -> Result<(), GapModelError> {
             let list = markers.as_array().ok_or_else(|| GapModelError::Json("`markers` is not a list".into()))?;
@@ -65,6 +75,7 @@ impl GapModel {
                 let total = m["total_frames"].as_f64().unwrap_or(0.0);
                 if total > 0.0 {
                     fractions.push(missing / total);
+                    names.push(label_of(m["name"].as_str().unwrap_or("")));
                 }
                 let h: Vec<usize> = m["gap_length_histogram"]
                     .as_array()
@@ -85,7 +96,7 @@ impl GapModel {
         } else {
             return Err(GapModelError::Json("expected `sets`, `markers` or `gaps`".into()));
         }
-        GapModel::new(fractions, histogram)
+        GapModel::new(fractions, names, histogram)
     }
 
     /// The built-in model: real occlusions of a Qualisys capture (numediart `03_rolling`, 68
@@ -98,7 +109,9 @@ impl GapModel {
 
     /// Pools another model into this one (fractions and length counts).
     pub fn merge(&mut self, other: &GapModel) {
+        self.marker_names.resize(self.missing_fractions.len(), String::new());
         self.missing_fractions.extend(&other.missing_fractions);
+        self.marker_names.extend(other.names_padded());
         add_histogram(&mut self.length_histogram, &other.length_histogram);
         self.max_gap_frames = self.max_gap_frames.max(other.max_gap_frames);
     }
@@ -107,15 +120,53 @@ impl GapModel {
     pub fn uniform(missing_fraction: f64, max_len: usize) -> GapModel {
         let mut h = vec![1usize; max_len.max(1) + 1];
         h[0] = 0;
-        GapModel { missing_fractions: vec![missing_fraction], length_histogram: h, max_gap_frames: max_len.max(1) }
+        GapModel {
+            missing_fractions: vec![missing_fraction],
+            marker_names: vec![String::new()],
+            length_histogram: h,
+            max_gap_frames: max_len.max(1),
+        }
     }
 
-    fn new(missing_fractions: Vec<f64>, length_histogram: Vec<usize>) -> Result<GapModel, GapModelError> {
+    fn new(
+        missing_fractions: Vec<f64>,
+        marker_names: Vec<String>,
+        length_histogram: Vec<usize>,
+    ) -> Result<GapModel, GapModelError> {
         if length_histogram.iter().skip(1).all(|c| *c == 0) {
             return Err(GapModelError::NoGaps);
         }
         let max_gap_frames = length_histogram.len() - 1;
-        Ok(GapModel { missing_fractions, length_histogram, max_gap_frames })
+        Ok(GapModel { missing_fractions, marker_names, length_histogram, max_gap_frames })
+    }
+
+    /// `marker_names` with one entry per missing fraction (older JSON has none).
+    fn names_padded(&self) -> Vec<String> {
+        let mut names = self.marker_names.clone();
+        names.resize(self.missing_fractions.len(), String::new());
+        names
+    }
+
+    /// Occlusion probability of the marker labelled `label` in the statistics (the mean over
+    /// entries of that label), if they name it.
+    pub fn fraction_of(&self, label: &str) -> Option<f64> {
+        let values: Vec<f64> = self
+            .marker_names
+            .iter()
+            .zip(&self.missing_fractions)
+            .filter(|(n, _)| !n.is_empty() && n.as_str() == label)
+            .map(|(_, f)| *f)
+            .collect();
+        (!values.is_empty()).then(|| values.iter().sum::<f64>() / values.len() as f64)
+    }
+
+    /// Mean of the per-marker missing fractions (0 without any).
+    pub fn mean_fraction(&self) -> f64 {
+        if self.missing_fractions.is_empty() {
+            0.0
+        } else {
+            self.missing_fractions.iter().sum::<f64>() / self.missing_fractions.len() as f64
+        }
     }
 
     /// Draws one gap length from the histogram (lengths above `max_gap_frames` excluded).
@@ -182,6 +233,11 @@ impl GapModel {
     }
 }
 
+/// The marker label of a full name (`Subject:LABEL` -> `LABEL`).
+fn label_of(name: &str) -> String {
+    locap_core::MarkerName::parse(name).label
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -220,6 +276,8 @@ mod tests {
             {"name": "X", "missing_frames": 10, "total_frames": 100, "gap_length_histogram": [0, 2, 0, 1]}]}}}"#;
         let model = GapModel::from_json(json).unwrap();
         assert_eq!(model.missing_fractions, vec![0.1]);
+        assert_eq!(model.fraction_of("X"), Some(0.1));
+        assert_eq!(model.fraction_of("Y"), None);
         assert_eq!(model.length_histogram, vec![0, 2, 0, 1]);
         assert!(matches!(GapModel::from_json("{}"), Err(GapModelError::Json(_))));
     }

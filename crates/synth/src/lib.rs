@@ -20,6 +20,7 @@
 //! training shards to any `std::io::Write`). `locap synth`, `locap stats` and
 //! `locap layout` are where files meet it.
 
+pub mod augment;
 pub mod calibrate;
 pub mod gap_model;
 pub mod layout;
