@@ -34,6 +34,10 @@ enum Command {
     Bench(cmd::bench::Args),
     /// Marker layouts: calibrate offsets on real takes with their solved motion.
     Layout(cmd::layout::Args),
+    /// Pool the real occlusion statistics of takes into one JSON file (for synth --augment).
+    Stats(cmd::stats::Args),
+    /// Synthesize training data: markers from skeleton motion, realistic gaps and shifts.
+    Synth(cmd::synth::Args),
 }
 
 fn main() -> ExitCode {
@@ -44,6 +48,8 @@ fn main() -> ExitCode {
         Command::Clean(args) => cmd::clean::run(args),
         Command::Bench(args) => cmd::bench::run(args),
         Command::Layout(args) => cmd::layout::run(args),
+        Command::Stats(args) => cmd::stats::run(args),
+        Command::Synth(args) => cmd::synth::run(args),
     };
     match result {
         Ok(code) => code,

@@ -137,6 +137,47 @@ impl GapStatistics {
     pub fn gap_count(&self) -> usize {
         self.markers.iter().map(|m| m.gap_count).sum()
     }
+
+    /// Pools the statistics of several takes: markers with the same label (subject prefix
+    /// ignored) are merged (frames, gaps and histograms add up), in order of first
+    /// appearance; the frame rate is the first take's. `None` for no takes.
+    pub fn pool<'a>(stats: impl IntoIterator<Item = &'a GapStatistics>) -> Option<GapStatistics> {
+        let mut out: Option<GapStatistics> = None;
+        for s in stats {
+            let pooled = out.get_or_insert_with(|| GapStatistics {
+                format_version: Self::FORMAT_VERSION,
+                frame_rate_hz: s.frame_rate_hz,
+                total_frames: 0,
+                markers: Vec::new(),
+                gap_length_histogram: Vec::new(),
+            });
+            pooled.total_frames += s.total_frames;
+            add_histogram(&mut pooled.gap_length_histogram, &s.gap_length_histogram);
+            for m in &s.markers {
+                let label = crate::MarkerName::parse(&m.name).label;
+                let entry = match pooled.markers.iter().position(|p| p.name == label) {
+                    Some(i) => &mut pooled.markers[i],
+                    None => {
+                        pooled.markers.push(MarkerGapStatistics {
+                            name: label,
+                            missing_frames: 0,
+                            total_frames: 0,
+                            gap_count: 0,
+                            longest_gap: 0,
+                            gap_length_histogram: Vec::new(),
+                        });
+                        pooled.markers.last_mut().expect("just pushed")
+                    }
+                };
+                entry.missing_frames += m.missing_frames;
+                entry.total_frames += m.total_frames;
+                entry.gap_count += m.gap_count;
+                entry.longest_gap = entry.longest_gap.max(m.longest_gap);
+                add_histogram(&mut entry.gap_length_histogram, &m.gap_length_histogram);
+            }
+        }
+        out
+    }
 }
 
 fn histogram(lengths: impl Iterator<Item = usize>) -> Vec<usize> {
@@ -194,6 +235,16 @@ mod tests {
         assert!(json.contains("\"gap_length_histogram\""));
         let back: GapStatistics = serde_json::from_str(&json).unwrap();
         assert_eq!(back, stats);
+        // Pooling a take with itself doubles every count; labels are matched without prefix.
+        let mut prefixed = stats.clone();
+        prefixed.markers[0].name = "Subject:A".into();
+        let pooled = GapStatistics::pool([&stats, &prefixed]).unwrap();
+        assert_eq!(pooled.markers.len(), 2);
+        assert_eq!(pooled.markers[0].name, "A");
+        assert_eq!(pooled.markers[0].gap_length_histogram, vec![0, 0, 2]);
+        assert_eq!(pooled.total_frames, 8);
+        assert_eq!(pooled.missing_fraction(), 0.25);
+        assert!(GapStatistics::pool([]).is_none());
     }
 
     proptest! {

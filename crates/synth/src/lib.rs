@@ -24,6 +24,7 @@ pub mod augment;
 pub mod calibrate;
 pub mod gap_model;
 pub mod layout;
+pub mod shard;
 pub mod synthesize;
 
 pub use layout::{Layout, Region};

@@ -5,3 +5,5 @@ pub mod clean;
 pub mod convert;
 pub mod info;
 pub mod layout;
+pub mod stats;
+pub mod synth;
