@@ -32,7 +32,8 @@ enum Command {
     Clean(cmd::clean::Args),
     /// Measure accuracy and speed against baselines on real takes.
     Bench(cmd::bench::Args),
-    /// Marker layouts: calibrate offsets on real takes with their solved motion.
+    /// Marker layouts: calibrate offsets on real takes with their solved motion, or fit them to
+    /// a real take's marker distances.
     Layout(cmd::layout::Args),
     /// Pool the real occlusion statistics of takes into one JSON file (for synth --augment).
     Stats(cmd::stats::Args),

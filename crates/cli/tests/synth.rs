@@ -99,3 +99,44 @@ fn synth_bad_input() {
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("l.toml"), "{}", String::from_utf8_lossy(&out.stderr));
 }
+
+/// `layout calibrate` with motion and `layout fit` without: both write a layout that parses
+/// and report residuals.
+#[test]
+fn layout_calibrate_and_fit() {
+    let Some(data) = shared_data() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let calibrated = dir.path().join("cal.toml");
+    let out = locap()
+        .args(["layout", "calibrate", "--layout"])
+        .arg(repo().join("crates/synth/layouts/cmu41-template.toml"))
+        .arg("--take")
+        .arg(data.join("cmu-c3d/02_01.c3d"))
+        .arg("--motion")
+        .arg(data.join("cmu-asfamc/02/02_01.amc"))
+        .arg("-o")
+        .arg(&calibrated)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let text = String::from_utf8_lossy(&out.stdout);
+    let rms: f64 = text.lines().last().unwrap().rsplit(' ').nth(1).unwrap().parse().unwrap();
+    assert!(rms < 20.0, "{text}");
+    let layout = locap_synth::Layout::from_toml(&std::fs::read_to_string(&calibrated).unwrap()).unwrap();
+    assert_eq!(layout.markers.len(), 41);
+
+    let fitted = dir.path().join("fit.json");
+    let out = locap()
+        .args(["layout", "fit", "--layout"])
+        .arg(&calibrated)
+        .arg("--take")
+        .arg(data.join("cmu-c3d/85_02.c3d"))
+        .arg("-o")
+        .arg(&fitted)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(text.contains("21 pairs"), "{text}");
+    assert!(locap_synth::Layout::from_json(&std::fs::read_to_string(&fitted).unwrap()).is_ok());
+}

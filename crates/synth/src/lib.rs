@@ -22,6 +22,7 @@
 
 pub mod augment;
 pub mod calibrate;
+pub mod fit;
 pub mod gap_model;
 pub mod layout;
 pub mod shard;

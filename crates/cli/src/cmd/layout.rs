@@ -6,6 +6,7 @@ use anyhow::{Context, Result, bail};
 use clap::{Parser, Subcommand, ValueEnum};
 use locap_synth::Layout;
 use locap_synth::calibrate::{CalibrationOptions, calibrate};
+use locap_synth::fit::{DistanceFitOptions, fit_to_distances};
 use locap_synth::synthesize::LabFrame;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -23,6 +24,34 @@ enum What {
     /// Fit a layout's marker offsets by least squares to real labeled takes and the skeleton
     /// motion solved from them (same frames), and report per-marker residuals.
     Calibrate(CalibrateArgs),
+    /// Fit a layout's offsets to a real take's marker distances when no skeleton motion
+    /// exists: markers on the same joint get the real take's distances (bring your own
+    /// marker set), and report the residual.
+    Fit(FitArgs),
+}
+
+/// Arguments of `locap layout fit`.
+#[derive(Parser, Debug)]
+#[command(
+    after_help = "Example:\n  locap layout fit --layout my-markers.toml --take my-capture.c3d -o my-markers.fitted.toml"
+)]
+pub struct FitArgs {
+    /// Layout to fit (TOML or JSON): joints and initial offsets.
+    #[arg(long, value_name = "LAYOUT", help_heading = "Input")]
+    layout: PathBuf,
+    /// A real labeled take of the marker set (C3D or TRC).
+    #[arg(long, value_name = "TAKE", help_heading = "Input")]
+    take: PathBuf,
+    /// Pull towards the initial offsets (per mm^2 of offset change, against mm^2 of distance
+    /// error): fixes where each joint's group of markers sits, which distances cannot.
+    #[arg(long, default_value_t = 0.01, value_name = "LAMBDA", help_heading = "Fit")]
+    prior_weight: f64,
+    /// Fitted layout to write (TOML; JSON if the name ends in .json).
+    #[arg(short, long, value_name = "FILE", help_heading = "Output")]
+    output: PathBuf,
+    /// Also write the per-pair report as JSON.
+    #[arg(long, value_name = "FILE", help_heading = "Output")]
+    report: Option<PathBuf>,
 }
 
 /// Arguments of `locap layout calibrate`.
@@ -85,6 +114,7 @@ impl From<Lab> for LabFrame {
 pub fn run(args: Args) -> Result<ExitCode> {
     match args.what {
         What::Calibrate(a) => run_calibrate(a),
+        What::Fit(a) => run_fit(a),
     }
 }
 
@@ -156,6 +186,53 @@ fn run_calibrate(args: CalibrateArgs) -> Result<ExitCode> {
         table.push('\n');
     }
     let _ = writeln!(table, "all markers: RMS residual {:.1} mm", report.rms_mm());
+    crate::emit(&table)?;
+    if let Some(path) = &args.report {
+        let text = serde_json::to_string_pretty(&report)?;
+        locap_io::atomic::write_atomically(path, |w| Ok(w.write_all(text.as_bytes())?))?;
+    }
+    eprintln!("wrote {}", args.output.display());
+    Ok(ExitCode::SUCCESS)
+}
+
+fn run_fit(args: FitArgs) -> Result<ExitCode> {
+    let layout = read_layout(&args.layout)?;
+    let take = read_take(&args.take)?;
+    let options = DistanceFitOptions { prior_weight: args.prior_weight, ..Default::default() };
+    let (mut fitted, report) = fit_to_distances(&layout, &take, &options)?;
+    let name = args.take.file_name().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+    fitted.description = format!(
+        "{}; same-joint offsets fitted to the marker distances of {name} (locap layout fit), RMS distance error {:.1} mm",
+        layout.description.trim_end_matches('.'),
+        report.rms_after_mm()
+    );
+    write_layout(&fitted, &args.output)?;
+    let mut table = format!(
+        "{:<8} {:<8} {:<12} {:>9} {:>9} {:>9} {:>9}\n",
+        "marker", "marker", "joint", "real mm", "real sd", "before", "after"
+    );
+    for p in &report.pairs {
+        let _ = writeln!(
+            table,
+            "{:<8} {:<8} {:<12} {:>9.1} {:>9.1} {:>9.1} {:>9.1}",
+            p.a, p.b, p.joint, p.real_mm, p.real_sd_mm, p.before_mm, p.after_mm
+        );
+    }
+    let _ = writeln!(
+        table,
+        "{} pairs: RMS distance error {:.1} mm before, {:.1} mm after (real distances vary by {:.1} mm RMS)",
+        report.pairs.len(),
+        report.rms_before_mm(),
+        report.rms_after_mm(),
+        report.real_spread_mm()
+    );
+    if !report.unconstrained.is_empty() {
+        let _ = writeln!(
+            table,
+            "not constrained by distances (alone on their joint, blended, or not in the take), kept: {}",
+            report.unconstrained.join(" ")
+        );
+    }
     crate::emit(&table)?;
     if let Some(path) = &args.report {
         let text = serde_json::to_string_pretty(&report)?;
