@@ -39,6 +39,9 @@ enum Command {
     Stats(cmd::stats::Args),
     /// Synthesize training data: markers from skeleton motion, realistic gaps and shifts.
     Synth(cmd::synth::Args),
+    /// Hand skeleton motion and the hand marker layout from an ART hand export, plus
+    /// procedural finger motion within joint limits.
+    Hands(cmd::hands::Args),
 }
 
 fn main() -> ExitCode {
@@ -51,6 +54,7 @@ fn main() -> ExitCode {
         Command::Layout(args) => cmd::layout::run(args),
         Command::Stats(args) => cmd::stats::run(args),
         Command::Synth(args) => cmd::synth::run(args),
+        Command::Hands(args) => cmd::hands::run(args),
     };
     match result {
         Ok(code) => code,

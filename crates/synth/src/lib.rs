@@ -24,6 +24,7 @@ pub mod augment;
 pub mod calibrate;
 pub mod fit;
 pub mod gap_model;
+pub mod hand;
 pub mod layout;
 pub mod shard;
 pub mod synthesize;

@@ -3,6 +3,7 @@
 pub mod bench;
 pub mod clean;
 pub mod convert;
+pub mod hands;
 pub mod info;
 pub mod layout;
 pub mod stats;
