@@ -132,6 +132,13 @@ fn walk_flat(dir: &Path, out: &mut Vec<PathBuf>) -> Result<()> {
     Ok(())
 }
 
+/// Writes `value` as pretty JSON to `path`, atomically.
+pub fn write_json(path: &Path, value: &impl serde::Serialize) -> Result<()> {
+    let text = serde_json::to_string_pretty(value)?;
+    locap_io::atomic::write_atomically(path, |w| Ok(w.write_all(text.as_bytes())?))?;
+    Ok(())
+}
+
 /// Creates the folder a batch output goes into (it mirrors the input's subfolder).
 pub fn create_parent(target: &Path) -> Result<()> {
     if let Some(dir) = target.parent().filter(|d| !d.as_os_str().is_empty()) {

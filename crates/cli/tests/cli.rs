@@ -1,25 +1,9 @@
 //! The `locap` binary as a user runs it.
 
-use std::path::{Path, PathBuf};
+mod common;
+
+use common::{locap, repo, shared_data};
 use std::process::Command;
-
-fn locap() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_locap"))
-}
-
-fn repo() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
-}
-
-fn shared_data() -> Option<PathBuf> {
-    let dir = repo().join("../shared/data");
-    if dir.is_dir() {
-        Some(dir)
-    } else {
-        eprintln!("skipping: ../shared/data not found (tests on real captures need it)");
-        None
-    }
-}
 
 /// The README's run command, on the take shipped in the repository.
 #[test]

@@ -1,27 +1,9 @@
 //! `locap stats`, `locap synth` and `locap layout calibrate` as a user runs them.
 
-use std::path::{Path, PathBuf};
-use std::process::Command;
+mod common;
 
-fn locap() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_locap"))
-}
-
-fn repo() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
-}
-
-fn shared_data() -> Option<PathBuf> {
-    let dir = repo().join("../shared/data");
-    if dir.is_dir() {
-        Some(dir)
-    } else if std::env::var_os("CI").is_some() {
-        panic!("../shared/data not found, and CI is set: tests on real captures must run");
-    } else {
-        eprintln!("skipping: ../shared/data not found (tests on real captures need it)");
-        None
-    }
-}
+use common::{locap, repo, shared_data};
+use std::path::Path;
 
 /// Real statistics in, training pairs out: stats.json pools the takes, synth writes C3D, BVH
 /// and a shard per motion and a summary whose Eq. 6 gap lengths follow the real ones better

@@ -246,17 +246,10 @@ pub fn calibrate(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::layout::{LayoutMarker, Region};
-    use locap_core::{EulerOrder, Joint, MarkerName, Skeleton};
+    use crate::test_util::{joint, layout, marker};
+    use locap_core::{EulerOrder, MarkerName, Skeleton};
 
     fn chain() -> Skeleton {
-        let joint = |name: &str, parent: Option<usize>, o: [f64; 3]| Joint {
-            name: name.into(),
-            parent,
-            offset_mm: Vec3::from(o),
-            rotation_order: EulerOrder::ZXY,
-            is_end_site: false,
-        };
         Skeleton::new(vec![
             joint("root", None, [0.0; 3]),
             joint("a", Some(0), [0.0, 100.0, 0.0]),
@@ -290,20 +283,7 @@ mod tests {
             }
         }
         let take = Take::from_samples(vec![MarkerName::parse("M1"), MarkerName::parse("M2")], &samples, 120.0).unwrap();
-        let marker = |name: &str, joint: &str| LayoutMarker {
-            name: name.into(),
-            joint: joint.into(),
-            offset_mm: [0.0; 3],
-            region: Region::Body,
-            blend: None,
-            soft_tissue: 1.0,
-        };
-        let layout = Layout {
-            name: "t".into(),
-            description: String::new(),
-            aliases: Default::default(),
-            markers: vec![marker("M1", "root"), marker("M2", "b")],
-        };
+        let layout = layout(vec![marker("M1", "root", [0.0; 3]), marker("M2", "b", [0.0; 3])]);
         let options = CalibrationOptions { search_joints: true, ..Default::default() };
         let (fitted, report) = calibrate(&layout, &[(&take, &motion)], &options).unwrap();
         assert_eq!(fitted.markers[0].joint, "a");

@@ -255,7 +255,7 @@ pub fn fit_to_distances(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::layout::{LayoutMarker, Region};
+    use crate::test_util::marker;
     use locap_core::{EulerOrder, MarkerName};
 
     /// Three markers on one rigid body moving around: starting from wrong offsets, the fit
@@ -274,25 +274,12 @@ mod tests {
         }
         let names = ["A", "B", "C", "L"].map(MarkerName::parse).to_vec();
         let take = Take::from_samples(names, &samples, 100.0).unwrap();
-        let marker = |name: &str, joint: &str, o: [f64; 3]| LayoutMarker {
-            name: name.into(),
-            joint: joint.into(),
-            offset_mm: o,
-            region: Region::Body,
-            blend: None,
-            soft_tissue: 1.0,
-        };
-        let layout = Layout {
-            name: "t".into(),
-            description: String::new(),
-            aliases: Default::default(),
-            markers: vec![
-                marker("A", "seg", [10.0, -10.0, 5.0]),
-                marker("B", "seg", [130.0, 20.0, 0.0]),
-                marker("C", "seg", [0.0, 50.0, 0.0]),
-                marker("L", "other", [1.0, 2.0, 3.0]),
-            ],
-        };
+        let layout = crate::test_util::layout(vec![
+            marker("A", "seg", [10.0, -10.0, 5.0]),
+            marker("B", "seg", [130.0, 20.0, 0.0]),
+            marker("C", "seg", [0.0, 50.0, 0.0]),
+            marker("L", "other", [1.0, 2.0, 3.0]),
+        ]);
         let (fitted, report) = fit_to_distances(&layout, &take, &DistanceFitOptions::default()).unwrap();
         assert_eq!(report.pairs.len(), 3);
         assert_eq!(report.unconstrained, vec!["L".to_string()]);

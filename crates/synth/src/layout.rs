@@ -282,16 +282,9 @@ pub struct BoundLayout {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use locap_core::{EulerOrder, Joint};
+    use crate::test_util::joint;
 
-    pub(crate) fn arm() -> Skeleton {
-        let joint = |name: &str, parent: Option<usize>, o: [f64; 3]| Joint {
-            name: name.into(),
-            parent,
-            offset_mm: Vec3::from(o),
-            rotation_order: EulerOrder::ZXY,
-            is_end_site: false,
-        };
+    fn arm() -> Skeleton {
         Skeleton::new(vec![
             joint("root", None, [0.0; 3]),
             joint("upper", Some(0), [0.0, 0.0, 0.0]),

@@ -28,5 +28,7 @@ pub mod hand;
 pub mod layout;
 pub mod shard;
 pub mod synthesize;
+#[cfg(test)]
+mod test_util;
 
 pub use layout::{Layout, Region};

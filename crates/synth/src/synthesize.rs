@@ -332,18 +332,11 @@ pub fn markers_of(motion: &Motion, bound: &BoundLayout, subject: &Subject, lab: 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::layout::{LayoutMarker, Region};
+    use crate::test_util::{joint, marker};
     use locap_core::EulerOrder;
     use rand::SeedableRng;
 
     fn motion(frames: usize) -> Motion {
-        let joint = |name: &str, parent: Option<usize>, o: [f64; 3]| Joint {
-            name: name.into(),
-            parent,
-            offset_mm: Vec3::from(o),
-            rotation_order: EulerOrder::ZXY,
-            is_end_site: false,
-        };
         let sk = Skeleton::new(vec![
             joint("root", None, [0.0; 3]),
             joint("thigh", Some(0), [100.0, 0.0, 0.0]),
@@ -363,20 +356,10 @@ mod tests {
     }
 
     fn layout() -> Layout {
-        let marker = |name: &str, joint: &str, o: [f64; 3]| LayoutMarker {
-            name: name.into(),
-            joint: joint.into(),
-            offset_mm: o,
-            region: Region::Body,
-            blend: None,
-            soft_tissue: 1.0,
-        };
-        Layout {
-            name: "leg".into(),
-            description: String::new(),
-            aliases: Default::default(),
-            markers: vec![marker("THI", "thigh", [60.0, -200.0, 10.0]), marker("SHN", "shin", [40.0, -150.0, 30.0])],
-        }
+        crate::test_util::layout(vec![
+            marker("THI", "thigh", [60.0, -200.0, 10.0]),
+            marker("SHN", "shin", [40.0, -150.0, 30.0]),
+        ])
     }
 
     /// Without jitter or wobble, a marker's offset in its joint frame is the layout's offset

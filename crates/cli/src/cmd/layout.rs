@@ -188,8 +188,7 @@ fn run_calibrate(args: CalibrateArgs) -> Result<ExitCode> {
     let _ = writeln!(table, "all markers: RMS residual {:.1} mm", report.rms_mm());
     crate::emit(&table)?;
     if let Some(path) = &args.report {
-        let text = serde_json::to_string_pretty(&report)?;
-        locap_io::atomic::write_atomically(path, |w| Ok(w.write_all(text.as_bytes())?))?;
+        inputs::write_json(path, &report)?;
     }
     eprintln!("wrote {}", args.output.display());
     Ok(ExitCode::SUCCESS)
@@ -235,8 +234,7 @@ fn run_fit(args: FitArgs) -> Result<ExitCode> {
     }
     crate::emit(&table)?;
     if let Some(path) = &args.report {
-        let text = serde_json::to_string_pretty(&report)?;
-        locap_io::atomic::write_atomically(path, |w| Ok(w.write_all(text.as_bytes())?))?;
+        inputs::write_json(path, &report)?;
     }
     eprintln!("wrote {}", args.output.display());
     Ok(ExitCode::SUCCESS)

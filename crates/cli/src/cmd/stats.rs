@@ -58,8 +58,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
             "locap: warning: the takes have different frame rates ({rates:?} Hz); gap lengths are pooled in frames"
         );
     }
-    let text = serde_json::to_string_pretty(&pooled)?;
-    locap_io::atomic::write_atomically(&args.output, |w| Ok(w.write_all(text.as_bytes())?))?;
+    inputs::write_json(&args.output, &pooled)?;
     let mut out = format!(
         "{} takes, {} markers (by label), {} frames at {} Hz: {:.2}% of samples missing in {} gaps\n",
         done.len(),

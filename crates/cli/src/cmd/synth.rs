@@ -256,9 +256,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
     };
     std::fs::create_dir_all(&args.output)
         .with_context(|| format!("{}: cannot create folder", args.output.display()))?;
-    let json = serde_json::to_string_pretty(&summary)?;
-    let summary_path = args.output.join("summary.json");
-    locap_io::atomic::write_atomically(&summary_path, |w| Ok(w.write_all(json.as_bytes())?))?;
+    inputs::write_json(&args.output.join("summary.json"), &summary)?;
     crate::emit(&summary_table(&summary, model.is_some(), args.mode))?;
     Ok(if failed > 0 { ExitCode::from(1) } else { ExitCode::SUCCESS })
 }
