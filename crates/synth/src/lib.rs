@@ -15,6 +15,13 @@
 //!    probabilities and heavy-tailed gap lengths of real captures, placed longest first
 //!    without overlap (Eq. 6), plus shift outliers; or the per-frame random corruption of
 //!    Holden (2018) for comparison.
+//! 5. [`shard`]: a compact, chunk-streamable binary file per take (clean and corrupted
+//!    markers, visibility, joint positions and rotations) for training.
+//!
+//! Two more ways to get a layout or motion: [`fit`] fits a layout's offsets to a real take's
+//! marker distances when no skeleton motion exists, and [`hand`] builds hand skeleton motion
+//! from an ART hand export (fitted joint angles, plus procedural finger motion within joint
+//! limits) and the paper's hand marker layout.
 //!
 //! This crate never touches files: it takes and returns `locap_core` types (and writes
 //! training shards to any `std::io::Write`). `locap synth`, `locap stats` and

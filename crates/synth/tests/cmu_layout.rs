@@ -94,10 +94,22 @@ fn synthesized_take_has_real_neighbour_structure() {
         }
         r
     };
-    let (ra, rb) = (rank(&p_real), rank(&p_synth));
-    let n = ra.len() as f64;
-    let d2: f64 = ra.iter().zip(&rb).map(|(a, b)| (a - b) * (a - b)).sum();
-    let spearman = 1.0 - 6.0 * d2 / (n * (n * n - 1.0));
-    eprintln!("Spearman rank correlation of the profiles: {spearman:.2}");
-    assert!(spearman > 0.8, "{spearman}");
+    let spearman = |a: &[f64], b: &[f64]| {
+        let (ra, rb) = (rank(a), rank(b));
+        let n = ra.len() as f64;
+        let d2: f64 = ra.iter().zip(&rb).map(|(a, b)| (a - b) * (a - b)).sum();
+        1.0 - 6.0 * d2 / (n * (n * n - 1.0))
+    };
+    let rho = spearman(&p_real, &p_synth);
+    eprintln!("Spearman rank correlation of the profiles: {rho:.2}");
+    assert!(rho > 0.8, "{rho}");
+    // For scale: another real subject and lab day (CMU 85_02, gap-free) against 01_01.
+    let other = locap_io::c3d::read_path(&data.join("cmu-c3d/85_02.c3d")).unwrap().to_take().unwrap();
+    let p_other = profile(&other, &layout);
+    eprintln!(
+        "real 85_02: median {:.1} mm^2, Spearman vs real 01_01 {:.2}, vs synthesized {:.2}",
+        median(&p_other),
+        spearman(&p_real, &p_other),
+        spearman(&p_synth, &p_other)
+    );
 }
