@@ -52,6 +52,17 @@ fn stats_then_synth_on_cmu_motion() {
     let (ks, ks_pf) =
         (summary["ks_generated_vs_real"].as_f64().unwrap(), summary["ks_per_frame_vs_real"].as_f64().unwrap());
     assert!(ks < 0.1 && ks_pf > 0.3, "KS Eq. 6 {ks}, per-frame {ks_pf}");
+    // The shard streams back in chunks: header, then fixed-size frame records.
+    let file = std::fs::File::open(a.join("02/02_01.shard")).unwrap();
+    let mut reader = locap_synth::shard::ShardReader::new(std::io::BufReader::new(file)).unwrap();
+    assert_eq!((reader.header().frames, reader.header().markers.len()), (343, 41));
+    let record = reader.header().record_len();
+    let mut frames = 0;
+    while let Some(chunk) = reader.next_chunk(100).unwrap() {
+        assert_eq!(chunk.data.len(), chunk.frames * record);
+        frames += chunk.frames;
+    }
+    assert_eq!(frames, 343);
     assert!(run(&b).status.success());
     for name in ["02/02_01.shard", "01/01_01.c3d"] {
         assert_eq!(std::fs::read(a.join(name)).unwrap(), std::fs::read(b.join(name)).unwrap(), "{name} differs");

@@ -342,6 +342,34 @@ blend = { joint = "lower", weight = 0.5 }
         assert_eq!(layout.bind(&sk).unwrap().markers[0].joint, 1);
     }
 
+    proptest::proptest! {
+        /// Any valid layout survives TOML and JSON round trips exactly. (This test found
+        /// serde_json's default float parsing one ulp off; the workspace enables its
+        /// `float_roundtrip` feature.)
+        #[test]
+        fn round_trips(
+            offsets in proptest::collection::vec(proptest::array::uniform3(-500.0f64..500.0), 1..8),
+            weight in 0.0f64..=1.0,
+            soft in 0.0f64..3.0,
+        ) {
+            let markers = offsets
+                .iter()
+                .enumerate()
+                .map(|(i, o)| LayoutMarker {
+                    name: format!("M{i}"),
+                    joint: "upper".into(),
+                    offset_mm: *o,
+                    region: if i % 2 == 0 { Region::Body } else { Region::RightHand },
+                    blend: (i % 3 == 0).then(|| Blend { joint: "lower".into(), weight, offset_mm: Some(*o) }),
+                    soft_tissue: soft,
+                })
+                .collect();
+            let layout = crate::test_util::layout(markers);
+            proptest::prop_assert_eq!(Layout::from_toml(&layout.to_toml()).unwrap(), layout.clone());
+            proptest::prop_assert_eq!(Layout::from_json(&serde_json::to_string(&layout).unwrap()).unwrap(), layout);
+        }
+    }
+
     #[test]
     fn builtin_cmu_layout_has_41_markers() {
         let layout = Layout::cmu41();

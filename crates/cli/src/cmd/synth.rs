@@ -76,8 +76,9 @@ pub struct Args {
     /// Output folder (mirrors the input folders).
     #[arg(short, long, value_name = "DIR", help_heading = "Output")]
     output: PathBuf,
-    /// What to write per take: `c3d` (`NAME.clean.c3d`, `NAME.c3d` corrupted, `NAME.bvh` in
-    /// centimetres, locap's default BVH unit),
+    /// What to write per take: `c3d` (`NAME.clean.c3d`, `NAME.c3d` corrupted, both in the lab
+    /// frame; `NAME.bvh`, the subject-scaled motion in its own frame, in centimetres, locap's
+    /// default BVH unit),
     /// `shard` (`NAME.shard`, see the locap-synth `shard` docs), or both.
     #[arg(long, value_enum, default_value_t = Format::Both, help_heading = "Output")]
     format: Format,
