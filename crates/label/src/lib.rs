@@ -127,10 +127,9 @@ impl Labels {
                 }
             }
             if keep_unlabeled {
-                let mut k = self.markers;
-                for (p, _) in used.iter().enumerate().filter(|(_, used)| !**used) {
-                    put(&mut take, k, p);
-                    k += 1;
+                let unlabeled = used.iter().enumerate().filter(|(_, used)| !**used).map(|(p, _)| p);
+                for (column, p) in (self.markers..).zip(unlabeled) {
+                    put(&mut take, column, p);
                 }
             }
         }
