@@ -10,3 +10,5 @@
 
 pub mod fill_bench;
 pub mod gap_model;
+pub mod label_bench;
+pub mod unlabel;

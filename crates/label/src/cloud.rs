@@ -74,6 +74,15 @@ impl PointFrames {
         self.offsets.windows(2).map(|w| w[1] - w[0]).max().unwrap_or(0)
     }
 
+    /// Frames `range` as a sequence of their own (a segment of a take).
+    pub fn slice_frames(&self, range: std::ops::Range<usize>) -> PointFrames {
+        let mut part = PointFrames::with_rate(self.frame_rate_hz);
+        for f in range {
+            part.push_frame(self.columns(f).iter().copied().zip(self.frame(f).iter().copied()));
+        }
+        part
+    }
+
     /// Total number of points over all frames.
     pub fn point_count(&self) -> usize {
         self.points_mm.len()
@@ -96,5 +105,7 @@ mod tests {
         assert_eq!(frames.columns(1), &[1]);
         assert_eq!(frames.max_points(), 1);
         assert_eq!(frames.point_count(), 2);
+        let second = frames.slice_frames(1..2);
+        assert_eq!((second.frame_count(), second.frame(0), second.columns(0)), (1, frames.frame(1), &[1u32][..]));
     }
 }

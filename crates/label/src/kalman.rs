@@ -23,14 +23,20 @@ pub struct KalmanConfig {
     /// Standard deviation of an estimated position of a missing marker (mm): how far the
     /// rigid-neighbour estimate is trusted.
     pub estimate_std_mm: f64,
-    /// Factor applied to the velocity every frame a marker is neither seen nor estimated,
-    /// so an occluded marker coasts to a stop instead of flying off along its last velocity.
-    pub coast_damping: f64,
+    /// Time constant (s) with which the velocity of a marker that is neither seen nor
+    /// estimated decays, so an occluded marker coasts to a stop instead of flying off along
+    /// its last velocity.
+    pub coast_time_constant_s: f64,
 }
 
 impl Default for KalmanConfig {
     fn default() -> KalmanConfig {
-        KalmanConfig { accel_std_mm_s2: 20_000.0, measurement_std_mm: 2.0, estimate_std_mm: 15.0, coast_damping: 0.9 }
+        KalmanConfig {
+            accel_std_mm_s2: 50_000.0,
+            measurement_std_mm: 2.0,
+            estimate_std_mm: 15.0,
+            coast_time_constant_s: 0.3,
+        }
     }
 }
 
@@ -79,9 +85,10 @@ impl Track {
         self.covariance = [(1.0 - k_p) * pp, (1.0 - k_p) * pv, vv - k_v * pv];
     }
 
-    /// Neither seen nor estimated this frame: slow down (see [`KalmanConfig::coast_damping`]).
-    pub fn coast(&mut self, config: &KalmanConfig) {
-        self.velocity_mm_s *= config.coast_damping;
+    /// Neither seen nor estimated for `dt_s`: slow down (see
+    /// [`KalmanConfig::coast_time_constant_s`]).
+    pub fn coast(&mut self, dt_s: f64, config: &KalmanConfig) {
+        self.velocity_mm_s *= (-dt_s / config.coast_time_constant_s).exp();
     }
 }
 
@@ -112,7 +119,7 @@ mod tests {
         let before = track.innovation_variance(2.0);
         for _ in 0..10 {
             track.predict(1.0 / 60.0, &config);
-            track.coast(&config);
+            track.coast(1.0 / 60.0, &config);
         }
         let grown = track.innovation_variance(2.0);
         assert!(grown > before);

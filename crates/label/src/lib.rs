@@ -67,6 +67,16 @@ pub struct Labels {
 const NONE: u32 = u32::MAX;
 
 impl Labels {
+    /// Labels given frame by frame (for each frame, each marker's point), for scoring
+    /// another labeler's output or tests.
+    pub fn from_frames(markers: usize, frames: &[Vec<Option<usize>>]) -> Labels {
+        let mut point = Vec::with_capacity(frames.len() * markers);
+        for frame in frames {
+            point.extend((0..markers).map(|m| frame.get(m).copied().flatten().map_or(NONE, |p| p as u32)));
+        }
+        Labels { markers, estimated_mm: vec![None; point.len()], point }
+    }
+
     /// Number of frames.
     pub fn frame_count(&self) -> usize {
         self.point.len().checked_div(self.markers).unwrap_or(0)
