@@ -71,7 +71,50 @@ pub struct Unlabeled {
     pub source_frames: Vec<usize>,
 }
 
+/// The hidden truth of an unlabeled take, as `locap unlabel` writes it next to the C3D
+/// file (`RAW.truth.json`): for every frame, the marker index of each point column (`*0`,
+/// `*1`, ... in order), or -1 for a ghost.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct TruthFile {
+    /// Format tag, `locap-unlabel-truth/1`.
+    pub format: String,
+    /// Full names of the labeled markers the indices refer to.
+    pub markers: Vec<String>,
+    /// For every output frame, the source take's frame it was taken from (0-based).
+    pub source_frames: Vec<usize>,
+    /// For every frame, the truth of its points in column order.
+    pub frames: Vec<Vec<i32>>,
+}
+
+/// The format tag of [`TruthFile`].
+pub const TRUTH_FORMAT: &str = "locap-unlabel-truth/1";
+
 impl Unlabeled {
+    /// The points as a take of unlabeled columns `*0`, `*1`, ...: frame `f`'s points fill
+    /// columns `0..n_f` in their (shuffled) order; the rest are missing.
+    pub fn to_take(&self) -> Take {
+        let columns = self.frames.max_points();
+        let names = (0..columns).map(|k| MarkerName::parse(&format!("*{k}"))).collect();
+        // Cannot fail: the rate comes from a valid take.
+        let mut take = Take::empty(names, self.frames.frame_count(), self.frames.frame_rate_hz()).expect("valid rate");
+        for f in 0..self.frames.frame_count() {
+            for (k, p) in self.frames.frame(f).iter().enumerate() {
+                let _ = take.set_position_mm(f, k, Some(*p));
+            }
+        }
+        take
+    }
+
+    /// The truth in its file form.
+    pub fn truth_file(&self) -> TruthFile {
+        TruthFile {
+            format: TRUTH_FORMAT.to_string(),
+            markers: self.markers.iter().map(|m| m.full()).collect(),
+            source_frames: self.source_frames.clone(),
+            frames: self.truth_by_frame().iter().map(|t| t.to_vec()).collect(),
+        }
+    }
+
     /// The truth of the points of frame `f`.
     pub fn frame_truth(&self, f: usize) -> &[i32] {
         let start: usize = (0..f).map(|g| self.frames.frame(g).len()).sum();
@@ -260,6 +303,15 @@ mod tests {
             shuffled |= truth.iter().filter(|&&t| t >= 0).collect::<Vec<_>>().windows(2).any(|w| w[0] > w[1]);
         }
         assert!(shuffled);
+        let written = u.to_take();
+        assert_eq!(written.marker_count(), 8);
+        let back = PointFrames::from_take(&written);
+        for f in 0..30 {
+            assert_eq!(back.frame(f), u.frames.frame(f), "column order is point order");
+        }
+        let truth = u.truth_file();
+        assert_eq!(truth.frames.len(), 30);
+        assert_eq!(truth.frames[5], u.frame_truth(5));
         assert_eq!(u.frame_truth(3), by_frame[3]);
         assert_eq!(unlabel(&take(), &config).unwrap(), u, "seeded");
     }

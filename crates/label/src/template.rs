@@ -45,7 +45,7 @@ pub struct Template {
 impl Template {
     /// Builds a template from the labeled markers of `take` (unlabeled `*N` columns are left
     /// out). `reference_frame` is the frame whose pose initialises labeling; by default the
-    /// first frame in which the most markers are visible. Each marker keeps its
+    /// first frame in which at least 90% of the most markers ever visible together are. Each marker keeps its
     /// [`RANKED_NEIGHBOURS`] most stable neighbours.
     pub fn from_take(take: &Take, reference_frame: Option<usize>) -> Result<Template, LabelError> {
         let keep: Vec<usize> = (0..take.marker_count()).filter(|&m| !take.markers()[m].is_unlabeled()).collect();
@@ -67,7 +67,13 @@ impl Template {
                 )));
             }
             Some(f) => f,
-            None => (0..take.frame_count()).max_by_key(|&f| (visible_in(f), std::cmp::Reverse(f))).unwrap_or(0),
+            None => {
+                // The first frame showing nearly all markers: templates (a T-pose, a labeled
+                // take) start in their reference pose, and a frame much later would be a
+                // different pose from the raw take's start.
+                let most = (0..take.frame_count()).map(visible_in).max().unwrap_or(0);
+                (0..take.frame_count()).find(|&f| visible_in(f) * 10 >= most * 9).unwrap_or(0)
+            }
         };
         if visible_in(reference) < 3 {
             return Err(LabelError::Template(format!(

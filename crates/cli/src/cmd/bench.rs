@@ -174,7 +174,7 @@ fn read_takes(paths: &[PathBuf]) -> Result<Vec<(String, locap_core::Take)>> {
 }
 
 /// Occlusion statistics from a JSON file or a take with real gaps.
-fn gap_model_from(source: &std::path::Path) -> Result<GapModel> {
+pub fn gap_model_from(source: &std::path::Path) -> Result<GapModel> {
     if inputs::has_extension(source, &["json"]) {
         let text = std::fs::read_to_string(source).with_context(|| format!("{}", source.display()))?;
         Ok(GapModel::from_json(&text).with_context(|| format!("{}", source.display()))?)
