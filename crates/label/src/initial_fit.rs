@@ -81,14 +81,16 @@ pub fn fit_first_frame(
     }
     let (_, transform) = best.ok_or_else(|| LabelError::FirstFrame("the template has no visible markers".into()))?;
 
+    let placed = refine_segments(template, points, &transform);
+
     // One-to-one matching within the acceptance distance.
     let mut assignment = GatedAssignment::default();
     assignment.begin(points.len());
     let limit2 = config.accept_mm * config.accept_mm;
-    for p in template.reference_mm() {
+    for p in &placed {
         assignment.push_marker(limit2);
-        if let Some(p) = p {
-            let moved = transform.apply(p);
+        if let Some(moved) = p {
+            let moved = *moved;
             for (j, q) in points.iter().enumerate() {
                 let d2 = (moved - q).norm_squared();
                 if d2 < limit2 {
@@ -98,11 +100,8 @@ pub fn fit_first_frame(
         }
     }
     let matched: Vec<Option<usize>> = assignment.solve().iter().map(|a| a.map(|p| p as usize)).collect();
-    let pairs: Vec<(Vec3, Vec3)> = matched
-        .iter()
-        .zip(template.reference_mm())
-        .filter_map(|(a, p)| Some((transform.apply(&(*p)?), points[(*a)?])))
-        .collect();
+    let pairs: Vec<(Vec3, Vec3)> =
+        matched.iter().zip(&placed).filter_map(|(a, p)| Some(((*p)?, points[(*a)?]))).collect();
     let needed = ((source.len() as f64 * config.min_matched_fraction).ceil() as usize).max(3);
     if pairs.len() < needed {
         return Err(LabelError::FirstFrame(format!(
@@ -115,6 +114,56 @@ pub fn fit_first_frame(
     }
     let rms_mm = (pairs.iter().map(|(a, b)| (a - b).norm_squared()).sum::<f64>() / pairs.len() as f64).sqrt();
     Ok(InitialFit { assignment: matched, transform, rms_mm })
+}
+
+/// Neighbours whose distance spread over the template is at most this (mm) move with a
+/// marker as one segment during refinement.
+const SEGMENT_STD_MM: f64 = 25.0;
+
+/// Articulated refinement: the subject's limbs need not be posed exactly as in the template.
+/// Starting from the whole-body fit, every marker's segment (the marker and its rigid
+/// neighbours) is fitted again on its own, by trimmed ICP with a shrinking search radius,
+/// and the marker is placed where its segment's fit puts it.
+fn refine_segments(template: &Template, points: &[Vec3], body: &RigidTransform) -> Vec<Option<Vec3>> {
+    let reference = template.reference_mm();
+    let (mut from, mut to) = (Vec::new(), Vec::new());
+    (0..template.marker_count())
+        .map(|i| {
+            let r = reference[i]?;
+            let group: Vec<Vec3> = std::iter::once(r)
+                .chain(
+                    template.edges()[i]
+                        .iter()
+                        .filter(|e| e.std_mm <= SEGMENT_STD_MM)
+                        .filter_map(|e| reference[e.neighbour]),
+                )
+                .collect();
+            let mut transform = *body;
+            if group.len() >= 3 {
+                for radius in [200.0, 150.0, 100.0, 80.0, 60.0, 60.0, 60.0] {
+                    from.clear();
+                    to.clear();
+                    for p in &group {
+                        let moved = transform.apply(p);
+                        let nearest = points
+                            .iter()
+                            .map(|q| ((moved - q).norm_squared(), q))
+                            .min_by(|a, b| a.0.total_cmp(&b.0))
+                            .expect("at least 3 points");
+                        if nearest.0 < radius * radius {
+                            from.push(*p);
+                            to.push(*nearest.1);
+                        }
+                    }
+                    match align(&from, &to) {
+                        Some(next) => transform = next,
+                        None => break,
+                    }
+                }
+            }
+            Some(transform.apply(&r))
+        })
+        .collect()
 }
 
 /// Iterative closest point with trimmed correspondences: each iteration pairs every source

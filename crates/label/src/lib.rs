@@ -146,6 +146,34 @@ impl Labels {
         take
     }
 
+    /// A check that needs no truth, for real takes: of the labeled samples that have at least
+    /// one labeled rigid neighbour (template spread at most 12 mm), how many keep every such
+    /// edge within `tolerance_mm` (or three spreads) of its template length. A marker given a
+    /// ghost or another marker's point breaks its edges. Returns (consistent, checked).
+    pub fn edge_consistency(&self, frames: &PointFrames, template: &Template, tolerance_mm: f64) -> (usize, usize) {
+        let (mut consistent, mut checked) = (0, 0);
+        for f in 0..self.frame_count() {
+            let points = frames.frame(f);
+            for (i, edges) in template.edges().iter().enumerate() {
+                let Some(p) = self.get(f, i) else { continue };
+                let mut any = false;
+                let mut ok = true;
+                for e in edges.iter().filter(|e| e.std_mm <= 12.0) {
+                    if let Some(q) = self.get(f, e.neighbour) {
+                        any = true;
+                        let d = (points[p] - points[q]).norm();
+                        ok &= (d - e.length_mm).abs() <= tolerance_mm.max(3.0 * e.std_mm);
+                    }
+                }
+                if any {
+                    checked += 1;
+                    consistent += usize::from(ok);
+                }
+            }
+        }
+        (consistent, checked)
+    }
+
     fn labeled_in(&self, frame: usize) -> usize {
         (0..self.markers).filter(|&m| self.get(frame, m).is_some()).count()
     }

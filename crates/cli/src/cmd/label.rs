@@ -18,6 +18,9 @@ use locap_label::{FitConfig, LabelConfig, PointFrames, Start, Template, label_fr
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
+/// Edge-length tolerance of the truth-free consistency check in the summary (mm).
+const EDGE_TOLERANCE_MM: f64 = 20.0;
+
 /// Arguments of `locap label`.
 #[derive(Parser, Debug)]
 #[command(after_help = "Examples:\n  locap label raw.c3d --template tpose.c3d -o labeled.c3d\n  \
@@ -115,13 +118,15 @@ fn label_one(input: &Path, output: &Path, template: &Template, args: &Args) -> R
     let t = labels.frame_count();
     let labeled_samples = (0..t).map(|f| (0..m).filter(|&k| labels.get(f, k).is_some()).count()).sum::<usize>();
     let unassigned = frames.point_count() - labeled_samples;
+    let (consistent, checked) = labels.edge_consistency(&frames, template, EDGE_TOLERANCE_MM);
     let mut line = format!(
         "{}: {t} frames, {m} markers, {:.2}% of marker samples labeled, {unassigned} points left unlabeled{}; \
-         first-frame fit {:.1} mm rms\n",
+         first-frame fit {:.1} mm rms; {:.2}% of checked samples keep their rigid edges within {EDGE_TOLERANCE_MM} mm\n",
         output.display(),
         100.0 * labeled_samples as f64 / (t * m).max(1) as f64,
         if args.keep_unlabeled { " (kept as *N)" } else { " (dropped)" },
         fitted.map_or(0.0, |f| f.rms_mm),
+        100.0 * consistent as f64 / checked.max(1) as f64,
     );
     if let Some(path) = &args.truth {
         line.push_str(&score_against(path, &frames, &labels, template)?);
