@@ -53,7 +53,8 @@ pub fn align_weighted(source: &[Vec3], target: &[Vec3], weights: &[f64]) -> Opti
     let svd = h.svd(true, true);
     let (u, v_t) = (svd.u?, svd.v_t?);
     // Collinear or coincident points leave the rotation about their line undetermined.
-    let mut sv: Vec<f64> = svd.singular_values.iter().copied().collect();
+    // An array, not a Vec: the labeler calls this in its per-frame loop.
+    let mut sv = [svd.singular_values[0], svd.singular_values[1], svd.singular_values[2]];
     sv.sort_by(|a, b| b.total_cmp(a));
     if sv[1].partial_cmp(&(1e-9 * sv[0].max(1e-300))) != Some(std::cmp::Ordering::Greater) {
         return None;

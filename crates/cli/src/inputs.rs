@@ -40,6 +40,17 @@ pub fn has_extension(path: &Path, extensions: &[&str]) -> bool {
     path.extension().and_then(|e| e.to_str()).is_some_and(|e| extensions.iter().any(|x| x.eq_ignore_ascii_case(e)))
 }
 
+/// Output paths for a command that writes one file per input take: `output` itself when
+/// one file was named, else a mirror of the inputs under the folder `output` (created).
+pub fn targets(given: &[PathBuf], files: &[PathBuf], output: &Path) -> Result<Vec<PathBuf>> {
+    let single = files.len() == 1 && given.len() == 1 && !given[0].is_dir() && !output.is_dir();
+    if single {
+        return Ok(vec![output.to_path_buf()]);
+    }
+    std::fs::create_dir_all(output).with_context(|| format!("{}: cannot create output folder", output.display()))?;
+    Ok(output_paths(files, output, None))
+}
+
 /// Where each of `files` goes under `out_dir`: its path relative to the folder all inputs
 /// share, so takes with the same name in different folders (`hands/x.c3d`, `sample_37/x.c3d`)
 /// never overwrite each other. `extension` replaces the file's own when given.

@@ -28,6 +28,10 @@ enum Command {
     Info(cmd::info::Args),
     /// Convert between formats (chosen from the file extensions).
     Convert(cmd::convert::Args),
+    /// Name the points of raw takes from a labeled template, online (soft graph matching).
+    Label(cmd::label::Args),
+    /// Make labeling benchmark input from a labeled take: shuffled points, ghosts, occlusions.
+    Unlabel(cmd::unlabel::Args),
     /// Fill occlusion gaps and remove outliers (LocalMoCap section 3.1).
     Clean(cmd::clean::Args),
     /// Measure accuracy and speed against baselines on real takes.
@@ -49,6 +53,8 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Info(args) => cmd::info::run(args),
         Command::Convert(args) => cmd::convert::run(args),
+        Command::Label(args) => cmd::label::run(args),
+        Command::Unlabel(args) => cmd::unlabel::run(args),
         Command::Clean(args) => cmd::clean::run(args),
         Command::Bench(args) => cmd::bench::run(args),
         Command::Layout(args) => cmd::layout::run(args),

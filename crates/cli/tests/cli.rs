@@ -177,3 +177,66 @@ fn clean_fills_real_gaps_and_changes_nothing_else() {
         Err(e) => eprintln!("skipping the ezc3d check: no python3 ({e})"),
     }
 }
+
+/// `unlabel` then `label` on the shipped example: shuffled points with as many ghosts as
+/// markers, labeled back from the original as template and scored against the truth file.
+#[test]
+fn unlabel_then_label_the_shipped_example() {
+    let dir = tempfile::tempdir().unwrap();
+    let example = repo().join("examples/cmu_01_01_last10s.c3d");
+    let before = std::fs::read(&example).unwrap();
+    let raw = dir.path().join("raw.c3d");
+    let out = locap()
+        .args(["unlabel", example.to_str().unwrap(), "-o", raw.to_str().unwrap(), "--ghosts", "M", "--seed", "3"])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let truth = dir.path().join("raw.truth.json");
+    assert!(truth.is_file());
+    let info = locap().args(["info", "--json", raw.to_str().unwrap()]).output().unwrap();
+    let json: serde_json::Value = serde_json::from_slice(&info.stdout).unwrap();
+    assert_eq!(json["frames"], 1200);
+    let markers = json["gaps"]["markers"].as_array().unwrap();
+    assert!(markers.iter().all(|m| m["name"].as_str().unwrap().starts_with('*')));
+
+    let labeled = dir.path().join("labeled.c3d");
+    // Percent of samples correct with `method`.
+    let score = |method: &str| -> f64 {
+        let out = locap()
+            .args(["label", raw.to_str().unwrap(), "--template", example.to_str().unwrap(), "-o"])
+            .arg(&labeled)
+            .arg("--truth")
+            .arg(&truth)
+            .args(["--method", method])
+            .output()
+            .unwrap();
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        let text = String::from_utf8(out.stdout).unwrap();
+        text.split("against")
+            .nth(1)
+            .and_then(|s| s.split(": ").nth(1))
+            .and_then(|s| s.split('%').next())
+            .and_then(|s| s.trim().parse().ok())
+            .unwrap_or_else(|| panic!("no score in {text}"))
+    };
+    // Ghosts standing near the body, as many as markers: soft graph matching beats unary
+    // matching (measured: 92.9% against 86.3%, closest point 46.3%).
+    let (ugm, ours) = (score("ugm"), score("ours"));
+    assert!(ours > 90.0 && ours > ugm + 3.0, "ours {ours}%, ugm {ugm}%");
+    let info = locap().args(["info", "--json", labeled.to_str().unwrap()]).output().unwrap();
+    let json: serde_json::Value = serde_json::from_slice(&info.stdout).unwrap();
+    let names: Vec<&str> =
+        json["gaps"]["markers"].as_array().unwrap().iter().map(|m| m["name"].as_str().unwrap()).collect();
+    assert!(names.contains(&"RBAC") && names.contains(&"LFHD"), "{names:?}");
+    assert_eq!(std::fs::read(&example).unwrap(), before, "the input is never modified");
+
+    // A template that is not one: a clear error, not a panic.
+    let empty = dir.path().join("empty.c3d");
+    std::fs::write(&empty, b"").unwrap();
+    let out = locap()
+        .args(["label", raw.to_str().unwrap(), "--template", empty.to_str().unwrap(), "-o", "x.c3d"])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("empty.c3d"));
+}

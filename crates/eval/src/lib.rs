@@ -12,3 +12,5 @@ pub mod fill_bench;
 /// Moved to `locap-synth` (the training-data augmentation and the benchmark share one gap
 /// model); re-exported so `locap_eval::gap_model` keeps working.
 pub use locap_synth::gap_model;
+pub mod label_bench;
+pub mod unlabel;

@@ -6,6 +6,8 @@ use anyhow::{Context, Result, bail};
 use clap::{Parser, Subcommand, ValueEnum};
 use locap_eval::fill_bench::{self, Variant};
 use locap_eval::gap_model::GapModel;
+use locap_eval::label_bench::{self, GhostCount, LabelBenchConfig};
+use locap_eval::unlabel::GhostMode;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -21,6 +23,86 @@ enum What {
     /// Gap-fill accuracy (OMPE) and speed of every fill method on real takes with realistic
     /// hidden gaps.
     Fill(FillArgs),
+    /// Labeling accuracy (identification rate of trajectories) and speed of soft graph
+    /// matching, unary graph matching and closest point, at several frame rates, with and
+    /// without ghosts.
+    Label(LabelArgs),
+}
+
+/// Arguments of `locap bench label`.
+#[derive(Parser, Debug)]
+#[command(
+    after_help = "Example:\n  locap bench label ../shared/data/cmu-c3d/*.c3d ../shared/data/hdm05-c3d/*.c3d --json label.json"
+)]
+pub struct LabelArgs {
+    /// Labeled takes (the truth); they are unlabeled, given ghosts and occlusions, and
+    /// labeled again by every method.
+    #[arg(required = true, value_name = "TAKE")]
+    takes: Vec<PathBuf>,
+    /// Frame rates to test (Hz), comma-separated.
+    #[arg(long, value_delimiter = ',', default_value = "120,60,30", value_name = "HZ")]
+    fps: Vec<f64>,
+    /// Ghost points per frame to test, comma-separated; `M` means as many as markers.
+    #[arg(long, value_delimiter = ',', default_value = "0,M", value_name = "N")]
+    ghosts: Vec<String>,
+    /// Where ghosts appear: near the body, riding on markers, or anywhere in the volume.
+    #[arg(long, value_enum, default_value_t = GhostModeArg::Near)]
+    ghost_mode: GhostModeArg,
+    /// Extra occlusions: with real statistics (built-in, a real Qualisys capture), or none.
+    #[arg(long, value_enum, default_value_t = Drop::Real)]
+    drop: Drop,
+    /// Occlusion statistics for `--drop real`: a gap statistics JSON (locap's or the LocalMoCap
+    /// paper's) or a C3D/TRC take with real gaps. Default: the built-in statistics of a real
+    /// Qualisys capture (numediart 03_rolling: 23% missing, long gaps).
+    #[arg(long, value_name = "FILE")]
+    gap_source: Option<PathBuf>,
+    /// Segment length (s): each segment is labeled on its own from its first frame.
+    #[arg(long, default_value_t = 10.0, value_name = "SECONDS")]
+    segment: f64,
+    /// Seed (same seed, same points).
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Also write the report as JSON.
+    #[arg(long, value_name = "FILE")]
+    json: Option<PathBuf>,
+}
+
+/// Ghost placement (see `locap_eval::unlabel`).
+#[derive(Debug, Clone, Copy, ValueEnum, PartialEq, Eq)]
+pub enum GhostModeArg {
+    /// Standing still N(0, 20 mm) from where a marker was.
+    Near,
+    /// Moving with a marker, N(0, 20 mm) off (the hardest case).
+    Riding,
+    /// Standing anywhere in the capture volume.
+    Random,
+}
+
+impl From<GhostModeArg> for GhostMode {
+    fn from(mode: GhostModeArg) -> GhostMode {
+        match mode {
+            GhostModeArg::Near => GhostMode::Near,
+            GhostModeArg::Riding => GhostMode::Riding,
+            GhostModeArg::Random => GhostMode::Random,
+        }
+    }
+}
+
+/// Extra occlusions.
+#[derive(Debug, Clone, Copy, ValueEnum, PartialEq, Eq)]
+pub enum Drop {
+    /// Real occlusion statistics.
+    Real,
+    /// Only the take's own gaps.
+    None,
+}
+
+/// Parses a ghost count: a number, or `M` for as many as markers.
+pub fn parse_ghosts(text: &str) -> Result<GhostCount> {
+    match text.trim() {
+        "M" | "m" | "markers" => Ok(GhostCount::PerMarker),
+        n => Ok(GhostCount::Fixed(n.parse().with_context(|| format!("ghost count {n:?} is not a number or M"))?)),
+    }
 }
 
 /// Arguments of `locap bench fill`.
@@ -74,13 +156,69 @@ pub enum Gaps {
 pub fn run(args: Args) -> Result<ExitCode> {
     match args.what {
         What::Fill(a) => fill(a),
+        What::Label(a) => label(a),
     }
 }
 
+fn read_takes(paths: &[PathBuf]) -> Result<Vec<(String, locap_core::Take)>> {
+    let files = inputs::expand(paths, &["c3d", "trc"])?;
+    files.iter().map(|p| Ok((p.display().to_string(), read_take(p)?))).collect()
+}
+
+/// Occlusion statistics from a JSON file or a take with real gaps.
+pub fn gap_model_from(source: &std::path::Path) -> Result<GapModel> {
+    if inputs::has_extension(source, &["json"]) {
+        let text = std::fs::read_to_string(source).with_context(|| format!("{}", source.display()))?;
+        Ok(GapModel::from_json(&text).with_context(|| format!("{}", source.display()))?)
+    } else {
+        let stats = locap_core::GapStatistics::of_take(&read_take(source)?);
+        GapModel::from_statistics([&stats]).with_context(|| format!("{}: no real gaps to learn from", source.display()))
+    }
+}
+
+fn label(args: LabelArgs) -> Result<ExitCode> {
+    let takes = read_takes(&args.takes)?;
+    if takes.is_empty() {
+        bail!("no takes");
+    }
+    if args.fps.iter().any(|f| !(*f > 0.0)) {
+        bail!("--fps values must be positive");
+    }
+    if !(args.segment > 0.0) {
+        bail!("--segment must be positive");
+    }
+    let config = LabelBenchConfig {
+        frame_rates_hz: args.fps.clone(),
+        ghosts: args.ghosts.iter().map(|g| parse_ghosts(g)).collect::<Result<_>>()?,
+        ghost_mode: args.ghost_mode.into(),
+        drop: match (args.drop, &args.gap_source) {
+            (Drop::None, _) => None,
+            (Drop::Real, None) => Some(GapModel::builtin()),
+            (Drop::Real, Some(source)) => Some(gap_model_from(source)?),
+        },
+        segment_s: args.segment,
+        seed: args.seed,
+        ..LabelBenchConfig::default()
+    };
+    eprintln!(
+        "labeling {} takes at {} frame rates x {} ghost settings with {} methods...",
+        takes.len(),
+        config.frame_rates_hz.len(),
+        config.ghosts.len(),
+        config.methods.len()
+    );
+    let report = label_bench::run(&takes, &config)?;
+    crate::emit(&report.table())?;
+    if let Some(path) = &args.json {
+        let text = serde_json::to_string_pretty(&report)?;
+        locap_io::atomic::write_atomically(path, |w| Ok(w.write_all(text.as_bytes())?))?;
+        eprintln!("wrote {}", path.display());
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
 fn fill(args: FillArgs) -> Result<ExitCode> {
-    let files = inputs::expand(&args.takes, &["c3d", "trc"])?;
-    let takes: Vec<(String, locap_core::Take)> =
-        files.iter().map(|p| Ok((p.display().to_string(), read_take(p)?))).collect::<Result<_>>()?;
+    let takes = read_takes(&args.takes)?;
     let mut model = match args.gaps {
         Gaps::Uniform => GapModel::uniform(args.uniform_fraction, args.max_gap),
         Gaps::Real => {
@@ -99,8 +237,7 @@ fn fill(args: FillArgs) -> Result<ExitCode> {
             }
             for source in &args.gap_source {
                 if inputs::has_extension(source, &["json"]) {
-                    let text = std::fs::read_to_string(source).with_context(|| format!("{}", source.display()))?;
-                    models.push(GapModel::from_json(&text).with_context(|| format!("{}", source.display()))?);
+                    models.push(gap_model_from(source)?);
                 } else {
                     stats.push(locap_core::GapStatistics::of_take(&read_take(source)?));
                 }

@@ -10,7 +10,7 @@
 //! `LOCAP:OUTLIERS` and `LOCAP:SWAPS`, so any C3D viewer shows what locap changed.
 
 use crate::inputs;
-use anyhow::{Context, Result, bail};
+use anyhow::{Result, bail};
 use clap::{Parser, ValueEnum};
 use locap_clean::outliers::{self, OutlierConfig};
 use locap_clean::swaps::{self, SwapConfig};
@@ -113,12 +113,7 @@ struct Summary {
 /// Runs `locap clean`.
 pub fn run(args: Args) -> Result<ExitCode> {
     let files = inputs::expand(&args.inputs, &["c3d"])?;
-    let single = files.len() == 1 && args.inputs.len() == 1 && !args.inputs[0].is_dir() && !args.output.is_dir();
-    if !single {
-        std::fs::create_dir_all(&args.output)
-            .with_context(|| format!("{}: cannot create output folder", args.output.display()))?;
-    }
-    let targets = if single { vec![args.output.clone()] } else { inputs::output_paths(&files, &args.output, None) };
+    let targets = inputs::targets(&args.inputs, &files, &args.output)?;
     let (done, failed) = crate::run_takes(&files, "cleaning", |i, input| {
         inputs::create_parent(&targets[i])?;
         clean_one(input, &targets[i], &args)

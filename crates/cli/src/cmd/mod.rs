@@ -5,6 +5,8 @@ pub mod clean;
 pub mod convert;
 pub mod hands;
 pub mod info;
+pub mod label;
 pub mod layout;
 pub mod stats;
 pub mod synth;
+pub mod unlabel;

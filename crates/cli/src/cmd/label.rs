@@ -1,0 +1,185 @@
+//! `locap label`: names the points of raw takes online, frame after frame (labeling paper
+//! sections 3 and 4; see `locap_label`), one take per job.
+//!
+//! The template is a labeled take of the same marker set (a T-pose, a range-of-motion take,
+//! or any labeled take of the subject); labeling starts by fitting its reference frame to the
+//! raw take's first frame, so the raw take must start in roughly that pose. Output: one
+//! column per template marker (missing where no point was labeled); the points no marker took
+//! (ghosts) are dropped, or kept as `*0`, `*1`, ... with `--keep-unlabeled`. Everything else in
+//! the file (analog data, parameters) is kept.
+
+use crate::inputs;
+use anyhow::{Context, Result, bail};
+use clap::{Parser, ValueEnum};
+use locap_eval::label_bench::score;
+use locap_eval::unlabel::{TRUTH_FORMAT, TruthFile};
+use locap_io::c3d;
+use locap_label::{FitConfig, LabelConfig, PointFrames, Start, Template, label_frames};
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+
+/// Edge-length tolerance of the truth-free consistency check in the summary (mm).
+const EDGE_TOLERANCE_MM: f64 = 20.0;
+
+/// Arguments of `locap label`.
+#[derive(Parser, Debug)]
+#[command(after_help = "Examples:\n  locap label raw.c3d --template tpose.c3d -o labeled.c3d\n  \
+                        locap label raw_takes/ --template tpose.c3d -o labeled/ --keep-unlabeled")]
+pub struct Args {
+    /// Raw C3D takes (unlabeled or mislabeled points; labels are ignored), or folders.
+    #[arg(required = true, value_name = "FILE")]
+    inputs: Vec<PathBuf>,
+    /// A labeled C3D take of the same marker set.
+    #[arg(long, value_name = "FILE", help_heading = "Template")]
+    template: PathBuf,
+    /// Frame of the template whose pose the raw takes start in (0-based); default: the first
+    /// frame with the most markers visible.
+    #[arg(long, value_name = "N", help_heading = "Template")]
+    template_frame: Option<usize>,
+    /// A template marker matches a first-frame point only within this distance after the
+    /// rigid fit (mm).
+    #[arg(long, default_value_t = FitConfig::default().accept_mm, value_name = "MM", help_heading = "Template")]
+    fit_distance: f64,
+    /// Output C3D file (one input) or folder.
+    #[arg(short, long, value_name = "PATH", help_heading = "Output")]
+    output: PathBuf,
+    /// Keep the points no marker took as unlabeled `*N` columns instead of dropping them.
+    #[arg(long, help_heading = "Output")]
+    keep_unlabeled: bool,
+    /// Score the labels against the truth `locap unlabel` wrote (one input only).
+    #[arg(long, value_name = "FILE", help_heading = "Output")]
+    truth: Option<PathBuf>,
+    /// Labeling method: soft graph matching (ours), or a baseline.
+    #[arg(long, value_enum, default_value_t = MethodArg::Ours, help_heading = "Labeling")]
+    method: MethodArg,
+}
+
+/// Labeling methods on the command line.
+#[derive(Debug, Clone, Copy, ValueEnum)]
+pub enum MethodArg {
+    /// Soft graph matching with missing-marker estimation.
+    Ours,
+    /// Unary graph matching: Hungarian on the distance to the Kalman prediction.
+    Ugm,
+    /// Closest point.
+    Cp,
+}
+
+impl From<MethodArg> for locap_label::Method {
+    fn from(m: MethodArg) -> locap_label::Method {
+        match m {
+            MethodArg::Ours => locap_label::Method::SoftGraph,
+            MethodArg::Ugm => locap_label::Method::Unary,
+            MethodArg::Cp => locap_label::Method::ClosestPoint,
+        }
+    }
+}
+
+/// Runs `locap label`.
+pub fn run(args: Args) -> Result<ExitCode> {
+    let files = inputs::expand(&args.inputs, &["c3d"])?;
+    if args.truth.is_some() && files.len() != 1 {
+        bail!("--truth scores one take; {} were given", files.len());
+    }
+    let template_take = c3d::read_path(&args.template)?.to_take().map_err(|e| e.in_file(&args.template))?;
+    let template = Template::from_take(&template_take, args.template_frame)
+        .with_context(|| format!("{}", args.template.display()))?;
+    let targets = inputs::targets(&args.inputs, &files, &args.output)?;
+    let (done, failed) = crate::run_takes(&files, "labeling", |i, input| {
+        inputs::create_parent(&targets[i])?;
+        label_one(input, &targets[i], &template, &args)
+    });
+    let text: String = done.iter().map(|(_, line)| line.clone()).collect();
+    crate::emit(&text)?;
+    Ok(if failed > 0 { ExitCode::from(1) } else { ExitCode::SUCCESS })
+}
+
+fn label_one(input: &Path, output: &Path, template: &Template, args: &Args) -> Result<String> {
+    if input == output {
+        bail!("{}: input and output are the same file; locap never overwrites its input", input.display());
+    }
+    let mut file = c3d::read_path(input)?;
+    let raw = file.to_take().map_err(|e| e.in_file(input))?;
+    let frames = PointFrames::from_take(&raw);
+    let config = LabelConfig::with_method(args.method.into());
+    let fit = FitConfig { accept_mm: args.fit_distance, ..FitConfig::default() };
+    let (labels, fitted) = label_frames(&frames, template, &config, Start::Fit(fit, raw.up_axis))
+        .with_context(|| format!("{}", input.display()))?;
+    let labeled = labels.to_take(&frames, template.names(), Some(&raw), args.keep_unlabeled);
+    file.set_take(&labeled).map_err(|e| e.in_file(input))?;
+    file.parameters.set_strings(
+        "LOCAP",
+        "LABELED",
+        &[format!("{} template {}", config.method.name(), args.template.display())],
+    );
+    c3d::write_path(&file, output)?;
+
+    let m = template.marker_count();
+    let t = labels.frame_count();
+    let labeled_samples = (0..t).map(|f| (0..m).filter(|&k| labels.get(f, k).is_some()).count()).sum::<usize>();
+    let unassigned = frames.point_count() - labeled_samples;
+    let (consistent, checked) = labels.edge_consistency(&frames, template, EDGE_TOLERANCE_MM);
+    let mut line = format!(
+        "{}: {t} frames, {m} markers, {:.2}% of marker samples labeled, {unassigned} points left unlabeled{}; \
+         first-frame fit {:.1} mm rms; {:.2}% of checked samples keep their rigid edges within {EDGE_TOLERANCE_MM} mm\n",
+        output.display(),
+        100.0 * labeled_samples as f64 / (t * m).max(1) as f64,
+        if args.keep_unlabeled { " (kept as *N)" } else { " (dropped)" },
+        fitted.map_or(0.0, |f| f.rms_mm),
+        100.0 * consistent as f64 / checked.max(1) as f64,
+    );
+    if let Some(path) = &args.truth {
+        line.push_str(&score_against(path, &frames, &labels, template)?);
+    }
+    Ok(line)
+}
+
+/// Scores `labels` against a truth file; template markers are matched to the truth's by label.
+fn score_against(
+    path: &Path,
+    frames: &PointFrames,
+    labels: &locap_label::Labels,
+    template: &Template,
+) -> Result<String> {
+    let text = std::fs::read_to_string(path).with_context(|| format!("{}: cannot read", path.display()))?;
+    let truth: TruthFile =
+        serde_json::from_str(&text).with_context(|| format!("{}: not a truth file", path.display()))?;
+    if truth.format != TRUTH_FORMAT {
+        bail!("{}: format {:?}, expected {TRUTH_FORMAT:?}", path.display(), truth.format);
+    }
+    if truth.frames.len() != frames.frame_count() {
+        bail!("{}: {} frames of truth for a take of {}", path.display(), truth.frames.len(), frames.frame_count());
+    }
+    // Truth marker index -> template marker index.
+    let to_template: Vec<i32> = truth
+        .markers
+        .iter()
+        .map(|name| {
+            let label = locap_core::MarkerName::parse(name).label;
+            template.names().iter().position(|n| n.label == label).map_or(-1, |k| k as i32)
+        })
+        .collect();
+    let mut per_point: Vec<Vec<i32>> = Vec::with_capacity(frames.frame_count());
+    for (f, columns) in truth.frames.iter().enumerate() {
+        let mapped = frames
+            .columns(f)
+            .iter()
+            .map(|&c| {
+                let t = columns.get(c as usize).copied().unwrap_or(-1);
+                if t >= 0 { to_template.get(t as usize).copied().unwrap_or(-1) } else { -1 }
+            })
+            .collect();
+        per_point.push(mapped);
+    }
+    let slices: Vec<&[i32]> = per_point.iter().map(|v| v.as_slice()).collect();
+    let s = score(&slices, labels, template.marker_count());
+    Ok(format!(
+        "  against {}: {:.3}% of samples correct, {:.3}% wrong, {:.3}% missed; {} of {} trajectories fully correct\n",
+        path.display(),
+        s.accuracy(),
+        100.0 * s.wrong as f64 / s.samples.max(1) as f64,
+        100.0 * s.missed as f64 / s.samples.max(1) as f64,
+        s.trajectories_correct,
+        s.trajectories
+    ))
+}

@@ -1,0 +1,111 @@
+//! Unlabeled input: per frame, an unordered set of 3D points.
+//!
+//! A capture system hands the labeler a point cloud every frame; which column of a C3D file a
+//! point sits in means nothing (raw files name them `*0`, `*1`, ... and reuse columns freely).
+//! [`PointFrames`] stores the clouds of a whole take compactly (one flat buffer plus frame
+//! offsets) so the per-frame loop never allocates.
+
+use locap_core::{Take, Vec3};
+
+/// The point clouds of a take, frame after frame, in millimetres.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PointFrames {
+    points_mm: Vec<Vec3>,
+    /// Where each point came from in the source take (its column), for writing results back.
+    columns: Vec<u32>,
+    /// `offsets[f]..offsets[f + 1]` are the points of frame `f`.
+    offsets: Vec<usize>,
+    frame_rate_hz: f64,
+}
+
+impl PointFrames {
+    /// Every valid sample of every column of `take` becomes a point of its frame, whatever
+    /// the column's name: labels in the input are ignored on purpose.
+    pub fn from_take(take: &Take) -> PointFrames {
+        let mut frames = PointFrames::with_rate(take.frame_rate_hz());
+        for f in 0..take.frame_count() {
+            for m in 0..take.marker_count() {
+                if let Some(p) = take.position_mm(f, m) {
+                    frames.points_mm.push(p);
+                    frames.columns.push(m as u32);
+                }
+            }
+            frames.offsets.push(frames.points_mm.len());
+        }
+        frames
+    }
+
+    /// An empty sequence at `frame_rate_hz`; add frames with [`PointFrames::push_frame`].
+    pub fn with_rate(frame_rate_hz: f64) -> PointFrames {
+        PointFrames { points_mm: Vec::new(), columns: Vec::new(), offsets: vec![0], frame_rate_hz }
+    }
+
+    /// Appends one frame; `points` are `(column, position_mm)` pairs.
+    pub fn push_frame(&mut self, points: impl IntoIterator<Item = (u32, Vec3)>) {
+        for (column, p) in points {
+            self.columns.push(column);
+            self.points_mm.push(p);
+        }
+        self.offsets.push(self.points_mm.len());
+    }
+
+    /// Number of frames.
+    pub fn frame_count(&self) -> usize {
+        self.offsets.len() - 1
+    }
+
+    /// Frames per second.
+    pub fn frame_rate_hz(&self) -> f64 {
+        self.frame_rate_hz
+    }
+
+    /// The points of frame `f`, in millimetres.
+    pub fn frame(&self, f: usize) -> &[Vec3] {
+        &self.points_mm[self.offsets[f]..self.offsets[f + 1]]
+    }
+
+    /// The source columns of the points of frame `f` (same order as [`PointFrames::frame`]).
+    pub fn columns(&self, f: usize) -> &[u32] {
+        &self.columns[self.offsets[f]..self.offsets[f + 1]]
+    }
+
+    /// Most points in any one frame.
+    pub fn max_points(&self) -> usize {
+        self.offsets.windows(2).map(|w| w[1] - w[0]).max().unwrap_or(0)
+    }
+
+    /// Frames `range` as a sequence of their own (a segment of a take).
+    pub fn slice_frames(&self, range: std::ops::Range<usize>) -> PointFrames {
+        let mut part = PointFrames::with_rate(self.frame_rate_hz);
+        for f in range {
+            part.push_frame(self.columns(f).iter().copied().zip(self.frame(f).iter().copied()));
+        }
+        part
+    }
+
+    /// Total number of points over all frames.
+    pub fn point_count(&self) -> usize {
+        self.points_mm.len()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use locap_core::MarkerName;
+
+    #[test]
+    fn keeps_valid_samples_in_column_order() {
+        let names = vec![MarkerName::parse("*0"), MarkerName::parse("*1")];
+        let samples = [Some(Vec3::new(1.0, 0.0, 0.0)), None, None, Some(Vec3::new(0.0, 2.0, 0.0))];
+        let take = Take::from_samples(names, &samples, 100.0).unwrap();
+        let frames = PointFrames::from_take(&take);
+        assert_eq!(frames.frame_count(), 2);
+        assert_eq!(frames.frame(0), &[Vec3::new(1.0, 0.0, 0.0)]);
+        assert_eq!(frames.columns(1), &[1]);
+        assert_eq!(frames.max_points(), 1);
+        assert_eq!(frames.point_count(), 2);
+        let second = frames.slice_frames(1..2);
+        assert_eq!((second.frame_count(), second.frame(0), second.columns(0)), (1, frames.frame(1), &[1u32][..]));
+    }
+}
