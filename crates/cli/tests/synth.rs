@@ -133,3 +133,30 @@ fn layout_calibrate_and_fit() {
     assert!(text.contains("21 pairs"), "{text}");
     assert!(locap_synth::Layout::from_json(&std::fs::read_to_string(&fitted).unwrap()).is_ok());
 }
+
+/// `locap hands` on the real ART export: fitted and procedural hand motion plus the hand
+/// layouts, which `locap synth` then turns into 14-marker hand takes.
+#[test]
+fn hands_then_synth() {
+    let Some(data) = shared_data() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let hands = dir.path().join("hands");
+    let out =
+        locap().arg("hands").arg(data.join("hands")).args(["--procedural", "2", "-o"]).arg(&hands).output().unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(text.contains("left hand, 969 frames") && text.contains("right hand, 969 frames"), "{text}");
+    let stem = "ART-Human_hands_real_no6dof";
+    let out = locap()
+        .args(["synth", "--motion"])
+        .arg(hands.join(format!("{stem}-right.bvh")))
+        .arg(hands.join(format!("{stem}-right-proc-002.bvh")))
+        .arg("--layout")
+        .arg(hands.join("hand-right.toml"))
+        .args(["--bvh-mm-per-unit", "10", "--format", "c3d", "-o"])
+        .arg(dir.path().join("train"))
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(String::from_utf8_lossy(&out.stdout).contains("2 takes, 1938 frames, 14 markers"));
+}
