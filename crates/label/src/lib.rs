@@ -20,6 +20,7 @@
 
 pub mod assignment;
 pub mod cloud;
+pub mod ik;
 pub mod initial_fit;
 pub mod kalman;
 pub mod labeler;
