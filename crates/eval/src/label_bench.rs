@@ -312,7 +312,7 @@ fn label_segment(
         .iter()
         .map(|config| {
             let started = Instant::now();
-            let (labels, _) = label_frames(&frames, template, config, Start::Known(&initial))?;
+            let (labels, _) = label_frames(&frames, template, config, Start::Known(&initial), None)?;
             let seconds = started.elapsed().as_secs_f64();
             Ok(Score { seconds, ..score(truth, &labels, template.marker_count()) })
         })

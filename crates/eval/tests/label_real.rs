@@ -22,9 +22,14 @@ fn roundtrip(path: &Path) -> Vec<(String, usize, usize)> {
     let template = Template::from_take(&take, None).unwrap();
     let config = UnlabelConfig { frame_rate_hz: None, ghosts: 0, ghost_mode: GhostMode::Near, drop: None, seed: 5 };
     let u = unlabel(&take, &config).unwrap();
-    let (labels, _) =
-        label_frames(&u.frames, &template, &LabelConfig::default(), Start::Fit(FitConfig::default(), take.up_axis))
-            .unwrap();
+    let (labels, _) = label_frames(
+        &u.frames,
+        &template,
+        &LabelConfig::default(),
+        Start::Fit(FitConfig::default(), take.up_axis),
+        None,
+    )
+    .unwrap();
     // A marker named `X-1` whose `X` exists is a fragment of X's trajectory under another
     // name (CMU 01_01 has `RBAC-1` for 8 frames while RBAC is missing): the same physical
     // marker, so labeling its point X is right.

@@ -39,7 +39,9 @@ fn bench(c: &mut Criterion) {
     for method in Method::ALL {
         let config = LabelConfig::with_method(method);
         group.bench_function(method.name(), |b| {
-            b.iter(|| black_box(label_frames(&frames, &template, &config, Start::Known(&initial)).expect("labels")))
+            b.iter(|| {
+                black_box(label_frames(&frames, &template, &config, Start::Known(&initial), None).expect("labels"))
+            })
         });
     }
     group.finish();

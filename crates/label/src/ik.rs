@@ -41,6 +41,8 @@ pub struct Attachment {
 pub struct MarkerModel {
     skeleton: Skeleton,
     attachments: Vec<Option<Attachment>>,
+    /// Skeleton world frame -> the take's lab frame (e.g. a Y-up skeleton in a Z-up lab).
+    lab: Quat,
     /// Joints with rotation parameters (all but end sites).
     moving: Vec<usize>,
 }
@@ -59,7 +61,21 @@ impl MarkerModel {
             }
         }
         let moving = (0..skeleton.len()).filter(|&j| !skeleton.joints()[j].is_end_site).collect();
-        Ok(MarkerModel { skeleton, attachments, moving })
+        Ok(MarkerModel { skeleton, attachments, moving, lab: Quat::identity() })
+    }
+
+    /// The same model in a lab whose axes are the skeleton's turned by `lab` (for a Y-up
+    /// skeleton in a Z-up lab as CMU's: lab `(X, Y, Z)` = skeleton `(z, x, y)`, see
+    /// [`MarkerModel::y_up_in_z_up_lab`]).
+    pub fn in_lab(mut self, lab: Quat) -> MarkerModel {
+        self.lab = lab;
+        self
+    }
+
+    /// The rotation taking a Y-up skeleton's `(x, y, z)` to a Z-up lab's `(z, x, y)`.
+    pub fn y_up_in_z_up_lab() -> Quat {
+        let m = nalgebra::Matrix3::new(0.0, 0.0, 1.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0);
+        Quat::from_rotation_matrix(&nalgebra::Rotation3::from_matrix_unchecked(m))
     }
 
     /// Number of markers (attached or not).
@@ -81,7 +97,7 @@ impl MarkerModel {
         }
         let root = Vec3::new(theta[0], theta[1], theta[2]) * DECIMETRE_MM;
         let pose = forward_kinematics(&self.skeleton, &local, root);
-        let on = |j: usize, o: &Vec3| pose.positions_mm[j] + pose.rotations[j] * o;
+        let on = |j: usize, o: &Vec3| self.lab * (pose.positions_mm[j] + pose.rotations[j] * o);
         self.attachments
             .iter()
             .map(|a| {
@@ -242,20 +258,7 @@ impl PoseTracker {
         let n = self.model.parameter_count();
         let first = self.history.is_empty();
         let start = match self.history.len() {
-            0 => {
-                // Rest pose moved onto the observed markers' centroid.
-                let mut theta = vec![0.0; n];
-                let rest = self.model.markers_mm(&theta);
-                let pairs: Vec<(Vec3, Vec3)> =
-                    rest.iter().zip(observed).filter_map(|(r, o)| Some(((*r)?, (*o)?))).collect();
-                if !pairs.is_empty() {
-                    let shift = pairs.iter().map(|(r, o)| o - r).sum::<Vec3>() / pairs.len() as f64;
-                    for (k, s) in shift.iter().enumerate() {
-                        theta[k] = s / DECIMETRE_MM;
-                    }
-                }
-                theta
-            }
+            0 => self.rest_pose_on(observed),
             1 => self.history[0].clone(),
             // The pose moving on at its (decaying) velocity.
             _ => self.history[0].iter().zip(&self.history[1]).map(|(a, b)| a + self.damping * (a - b)).collect(),
@@ -283,6 +286,36 @@ impl PoseTracker {
         self.history.insert(0, theta);
         self.history.truncate(2);
         markers
+    }
+
+    /// The rest pose turned and moved onto the observed markers (rigid fit of the rest pose's
+    /// markers, Kabsch): the first frame's fit then only has to bend the limbs, whichever way
+    /// the subject faces.
+    fn rest_pose_on(&self, observed: &[Option<Vec3>]) -> Vec<f64> {
+        let mut theta = vec![0.0; self.model.parameter_count()];
+        let rest = self.model.markers_mm(&theta);
+        let (from, to): (Vec<Vec3>, Vec<Vec3>) =
+            rest.iter().zip(observed).filter_map(|(r, o)| Some(((*r)?, (*o)?))).unzip();
+        let lab = self.model.lab;
+        let root_position = match locap_clean::procrustes::align(&from, &to) {
+            Some(fit) => {
+                // lab * (root + R_root p) = R_fit (lab p) + t  =>  R_root = lab^-1 R_fit lab.
+                let r_fit = Quat::from_rotation_matrix(&fit.rotation);
+                let r_root = lab.inverse() * r_fit * lab;
+                // The root comes first among the moving joints (parents precede children).
+                let v = r_root.scaled_axis();
+                theta[3..6].copy_from_slice(&[v.x, v.y, v.z]);
+                lab.inverse() * fit.translation
+            }
+            None if !to.is_empty() => {
+                lab.inverse() * (to.iter().sum::<Vec3>() - from.iter().sum::<Vec3>()) / to.len() as f64
+            }
+            None => Vec3::zeros(),
+        };
+        for k in 0..3 {
+            theta[k] = root_position[k] / DECIMETRE_MM;
+        }
+        theta
     }
 
     /// Forgets the motion so far (a new take).
@@ -361,6 +394,20 @@ pub(crate) mod tests {
                     assert!(e < 5.0, "frame {f} observed marker {i} off by {e} mm");
                 }
             }
+        }
+    }
+
+    #[test]
+    fn the_first_frame_finds_a_turned_subject_in_a_z_up_lab() {
+        let model = arm_model().in_lab(MarkerModel::y_up_in_z_up_lab());
+        let mut theta = arm_pose(&model, 0.3);
+        theta[3..6].copy_from_slice(&[0.0, 2.5, 0.0]); // root turned 143 degrees about y (up)
+        let truth = model.markers_mm(&theta);
+        let mut tracker = PoseTracker::new(model.clone(), IkConfig::default(), 60.0);
+        let fitted = tracker.fit(&truth, &vec![None; truth.len()]);
+        for (f, t) in fitted.iter().zip(&truth) {
+            let e = (f.unwrap() - t.unwrap()).norm();
+            assert!(e < 5.0, "off by {e} mm");
         }
     }
 

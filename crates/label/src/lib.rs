@@ -181,12 +181,14 @@ impl Labels {
 }
 
 /// Labels every frame of `frames` with `template`'s markers. Returns the labels and, when
-/// the start was fitted, the fit.
+/// the start was fitted, the fit. With a skeleton `pose_model`, missing markers are estimated
+/// from a pose fitted every frame ([`ik`]).
 pub fn label_frames(
     frames: &PointFrames,
     template: &Template,
     config: &LabelConfig,
     start: Start<'_>,
+    pose_model: Option<ik::MarkerModel>,
 ) -> Result<(Labels, Option<InitialFit>), LabelError> {
     if frames.frame_count() == 0 {
         return Err(LabelError::Config("the take has no frames".into()));
@@ -201,6 +203,9 @@ pub fn label_frames(
         Start::Known(initial) => (initial.to_vec(), None),
     };
     let mut labeler = Labeler::new(template, *config, frames.frame_rate_hz())?;
+    if let Some(model) = pose_model {
+        labeler = labeler.with_pose_model(model, ik::IkConfig::default())?;
+    }
     labeler.start(template, first, &initial)?;
     let mut point = Vec::with_capacity(frames.frame_count() * m);
     let mut estimated_mm = Vec::with_capacity(frames.frame_count() * m);

@@ -14,6 +14,7 @@ use clap::{Parser, ValueEnum};
 use locap_eval::label_bench::score;
 use locap_eval::unlabel::{TRUTH_FORMAT, TruthFile};
 use locap_io::c3d;
+use locap_label::ik::{Attachment, MarkerModel};
 use locap_label::{FitConfig, LabelConfig, PointFrames, Start, Template, label_frames};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -49,6 +50,15 @@ pub struct Args {
     /// Score the labels against the truth `locap unlabel` wrote (one input only).
     #[arg(long, value_name = "FILE", help_heading = "Output")]
     truth: Option<PathBuf>,
+    /// The subject's skeleton (ASF, or BVH in centimetres): with --layout, missing markers are
+    /// estimated from a pose fitted every frame (paper section 4) instead of from their rigid
+    /// neighbours alone. Slower: hundreds of frames per second.
+    #[arg(long, value_name = "FILE", requires = "layout", help_heading = "Skeleton")]
+    skeleton: Option<PathBuf>,
+    /// Marker layout on that skeleton (TOML or JSON, e.g. crates/synth/layouts/cmu41.toml);
+    /// template markers are matched to layout markers by label.
+    #[arg(long, value_name = "FILE", requires = "skeleton", help_heading = "Skeleton")]
+    layout: Option<PathBuf>,
     /// Labeling method: soft graph matching (ours), or a baseline.
     #[arg(long, value_enum, default_value_t = MethodArg::Ours, help_heading = "Labeling")]
     method: MethodArg,
@@ -84,17 +94,62 @@ pub fn run(args: Args) -> Result<ExitCode> {
     let template_take = c3d::read_path(&args.template)?.to_take().map_err(|e| e.in_file(&args.template))?;
     let template = Template::from_take(&template_take, args.template_frame)
         .with_context(|| format!("{}", args.template.display()))?;
+    let model = match (&args.skeleton, &args.layout) {
+        (Some(skeleton), Some(layout)) => Some(marker_model(skeleton, layout, &template)?),
+        _ => None,
+    };
     let targets = inputs::targets(&args.inputs, &files, &args.output)?;
     let (done, failed) = crate::run_takes(&files, "labeling", |i, input| {
         inputs::create_parent(&targets[i])?;
-        label_one(input, &targets[i], &template, &args)
+        label_one(input, &targets[i], &template, model.as_ref(), &args)
     });
     let text: String = done.iter().map(|(_, line)| line.clone()).collect();
     crate::emit(&text)?;
     Ok(if failed > 0 { ExitCode::from(1) } else { ExitCode::SUCCESS })
 }
 
-fn label_one(input: &Path, output: &Path, template: &Template, args: &Args) -> Result<String> {
+/// The template's markers attached to the skeleton by the layout.
+fn marker_model(skeleton: &Path, layout: &Path, template: &Template) -> Result<MarkerModel> {
+    let skeleton = if inputs::has_extension(skeleton, &["asf"]) {
+        let asf = locap_io::asf_amc::read_asf_path(skeleton)?;
+        asf.to_skeleton(asf.mm_per_unit()).map_err(|e| e.in_file(skeleton))?
+    } else {
+        locap_io::bvh::read_bvh_path(skeleton, locap_core::LengthUnit::Centimetre)?.skeleton
+    };
+    let bound = crate::cmd::layout::read_layout(layout)?
+        .bind(&skeleton)
+        .with_context(|| format!("{}: does not fit the skeleton", layout.display()))?;
+    let attachments: Vec<Option<Attachment>> = template
+        .names()
+        .iter()
+        .map(|name| {
+            let k = bound.names.iter().position(|n| *n == name.label)?;
+            let m = &bound.markers[k];
+            Some(Attachment {
+                joint: m.joint,
+                offset_mm: m.offset_mm,
+                blend: m.blend.as_ref().map(|b| (b.joint, b.weight, b.offset_mm)),
+            })
+        })
+        .collect();
+    let attached = attachments.iter().flatten().count();
+    if attached * 2 < template.marker_count() {
+        bail!(
+            "{}: only {attached} of the template's {} markers are in the layout (matched by label)",
+            layout.display(),
+            template.marker_count()
+        );
+    }
+    Ok(MarkerModel::new(skeleton, attachments)?)
+}
+
+fn label_one(
+    input: &Path,
+    output: &Path,
+    template: &Template,
+    model: Option<&MarkerModel>,
+    args: &Args,
+) -> Result<String> {
     if input == output {
         bail!("{}: input and output are the same file; locap never overwrites its input", input.display());
     }
@@ -103,7 +158,12 @@ fn label_one(input: &Path, output: &Path, template: &Template, args: &Args) -> R
     let frames = PointFrames::from_take(&raw);
     let config = LabelConfig::with_method(args.method.into());
     let fit = FitConfig { accept_mm: args.fit_distance, ..FitConfig::default() };
-    let (labels, fitted) = label_frames(&frames, template, &config, Start::Fit(fit, raw.up_axis))
+    // ASF and BVH skeletons are Y-up; a Z-up take sees them turned.
+    let model = model.map(|m| match raw.up_axis {
+        locap_core::UpAxis::Z => m.clone().in_lab(MarkerModel::y_up_in_z_up_lab()),
+        locap_core::UpAxis::Y => m.clone(),
+    });
+    let (labels, fitted) = label_frames(&frames, template, &config, Start::Fit(fit, raw.up_axis), model)
         .with_context(|| format!("{}", input.display()))?;
     let labeled = labels.to_take(&frames, template.names(), Some(&raw), args.keep_unlabeled);
     file.set_take(&labeled).map_err(|e| e.in_file(input))?;
