@@ -32,6 +32,10 @@ enum Command {
     Clean(cmd::clean::Args),
     /// Measure accuracy and speed against baselines on real takes.
     Bench(cmd::bench::Args),
+    /// Write a self-contained HTML page that plays a take (markers, fills, skeleton).
+    View(cmd::view::Args),
+    /// Draw PNG/SVG charts: gap lengths, occlusion rates, fill error by gap length.
+    Plot(cmd::plot::Args),
 }
 
 fn main() -> ExitCode {
@@ -41,6 +45,8 @@ fn main() -> ExitCode {
         Command::Convert(args) => cmd::convert::run(args),
         Command::Clean(args) => cmd::clean::run(args),
         Command::Bench(args) => cmd::bench::run(args),
+        Command::View(args) => cmd::view::run(args),
+        Command::Plot(args) => cmd::plot::run(args),
     };
     match result {
         Ok(code) => code,

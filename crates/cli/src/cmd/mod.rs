@@ -4,3 +4,5 @@ pub mod bench;
 pub mod clean;
 pub mod convert;
 pub mod info;
+pub mod plot;
+pub mod view;
