@@ -17,6 +17,8 @@ const STATE_LABELS = ['captured', 'filled by locap', 'outlier fixed', 'still mis
 const viewer = (window.locapViewer = {
   ready: false, frame: 0, frames: T, playing: false, spheresDrawn: 0, ghostsDrawn: 0, jointsDrawn: 0,
   counts: { visible: 0, filled: 0, outlier: 0, missing: 0 }, errorMm: null, loadMs: null, error: null, meta,
+  // Milliseconds since navigation start when each loading step ended.
+  timings: { script: Math.round(performance.now()) },
 });
 
 function fail(message) {
@@ -76,11 +78,13 @@ async function main() {
   undelta(positions);
   if (joints) undelta(joints);
   if (compare) undelta(compare);
+  viewer.timings.data = Math.round(performance.now());
 
   const threeSource = $('three-src').textContent;
   $('three-src').textContent = '';
   const THREE = await import(URL.createObjectURL(new Blob([threeSource], { type: 'text/javascript' })));
 
+  viewer.timings.three = Math.round(performance.now());
   const canvas = $('scene');
   let renderer;
   try {
@@ -90,6 +94,7 @@ async function main() {
     return;
   }
   renderer.setPixelRatio(Math.min(window.devicePixelRatio || 1, 2));
+  viewer.timings.webgl = Math.round(performance.now());
   const scene = new THREE.Scene();
   scene.background = new THREE.Color('#16181d');
   scene.add(new THREE.HemisphereLight(0xffffff, 0x303040, 2.2));
@@ -97,10 +102,22 @@ async function main() {
   sun.position.set(3, 6, 4);
   scene.add(sun);
   const floorY = Math.min(0, Q.offset_mm[1] * 0.001);
-  const grid = new THREE.GridHelper(20, 40, 0x4a505c, 0x2c3038);
-  grid.position.y = floorY;
-  scene.add(grid);
-  const camera = new THREE.PerspectiveCamera(40, 1, 0.01, 500);
+  // Floor grid, 20 m in 0.5 m cells, built from one segment per cell edge rather than
+  // THREE.GridHelper's 20 m lines: SwiftShader (the software WebGL of headless Chromium)
+  // drops a whole line when one end is behind the camera, which left the near floor empty.
+  {
+    const cell = 0.5, half = 20, v = [];
+    for (let i = -half; i <= half; i++) {
+      for (let j = -half; j < half; j++) {
+        v.push(i * cell, floorY, j * cell, i * cell, floorY, (j + 1) * cell);
+        v.push(j * cell, floorY, i * cell, (j + 1) * cell, floorY, i * cell);
+      }
+    }
+    const geometry = new THREE.BufferGeometry();
+    geometry.setAttribute('position', new THREE.BufferAttribute(new Float32Array(v), 3));
+    scene.add(new THREE.LineSegments(geometry, new THREE.LineBasicMaterial({ color: 0x353a45 })));
+  }
+  const camera = new THREE.PerspectiveCamera(40, 1, 0.05, 200);
 
   const sphere = new THREE.SphereGeometry(1, 14, 10);
   const instanced = (count, radius, material) => {
@@ -111,7 +128,7 @@ async function main() {
     scene.add(mesh);
     return mesh;
   };
-  const markerMesh = instanced(M, 0.016, new THREE.MeshLambertMaterial({ color: 0xffffff }));
+  const markerMesh = instanced(M, 0.018, new THREE.MeshLambertMaterial({ color: 0xffffff }));
   const ghostMesh = instanced(M, 0.012, new THREE.MeshBasicMaterial({ color: STATE_COLOURS[3], transparent: true, opacity: 0.35, depthWrite: false }));
   const compareMesh = compare ? instanced(M, 0.011, new THREE.MeshBasicMaterial({ color: 0xf5f5f5, wireframe: true })) : null;
   const jointCount = meta.skeleton ? meta.skeleton.joints.length : 0;
@@ -421,7 +438,8 @@ async function main() {
   });
   const fromHash = () => {
     const h = new URLSearchParams(location.hash.slice(1));
-    return { frame: h.has('frame') ? Number(h.get('frame')) : null, play: h.get('play') === '1' };
+    const num = (k) => (h.has(k) && Number.isFinite(Number(h.get(k))) ? Number(h.get(k)) : null);
+    return { frame: num('frame'), play: h.get('play') === '1', theta: num('theta'), phi: num('phi'), radius: num('radius') };
   };
   window.addEventListener('hashchange', () => { const h = fromHash(); if (h.frame !== null && Number.isFinite(h.frame)) { pause(); setFrame(h.frame, false); } });
   viewer.setFrame = (f) => { pause(); setFrame(f, false); return viewer.frame; };
@@ -429,11 +447,12 @@ async function main() {
   viewer.pause = pause;
 
   const resize = () => {
+    // Charts first: their height decides how much room the 3D view has.
+    drawCharts();
     const rect = $('view').getBoundingClientRect();
     renderer.setSize(rect.width, rect.height, false);
     camera.aspect = rect.width / Math.max(1, rect.height);
     camera.updateProjectionMatrix();
-    drawCharts();
     setFrame(viewer.frame, false);
   };
   window.addEventListener('resize', resize);
@@ -442,7 +461,9 @@ async function main() {
   viewer.frame = Math.max(0, Math.min(T - 1, Number.isFinite(start.frame) && start.frame !== null ? start.frame | 0 : 0));
   centroid(viewer.frame, target);
   // Stand back far enough to see the whole performance area of the first frame.
-  orbit.radius = 3.4;
+  if (start.theta !== null) orbit.theta = start.theta;
+  if (start.phi !== null) orbit.phi = Math.min(Math.PI - 0.05, Math.max(0.05, start.phi));
+  if (start.radius !== null) orbit.radius = Math.min(100, Math.max(0.3, start.radius));
   $('message').hidden = true;
   resize();
   viewer.ready = true;
