@@ -267,3 +267,46 @@ fn plot_writes_charts() {
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("not a report"));
 }
+
+/// `--motion`: CMU's solved motion of take 01_01 (AMC converted to BVH by `locap convert`)
+/// is drawn on its markers: in the page's data the root joint stays within a few cm of the
+/// hip markers' centre on every frame (this pins the Z-up to Y-up convention), and the browser
+/// draws every joint.
+#[test]
+fn skeleton_overlays_the_markers() {
+    let Some(data) = shared_data() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let bvh = dir.path().join("01_01.bvh");
+    let amc = data.join("cmu-asfamc/01/01_01.amc");
+    let out = locap().arg("convert").arg(&amc).arg(&bvh).arg("--asf").arg(data.join("cmu-asfamc/01/01.asf")).output().unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let page = dir.path().join("01_01.html");
+    let take = data.join("cmu-c3d/01_01.c3d");
+    let out = locap().arg("view").arg(&take).arg("--motion").arg(&bvh).arg("-o").arg(&page).output().unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+
+    let parsed = locap_view::page::ParsedPage::parse(&std::fs::read_to_string(&page).unwrap()).unwrap();
+    let frames = parsed.meta["frames"].as_u64().unwrap() as usize;
+    let markers: Vec<&str> = parsed.meta["markers"].as_array().unwrap().iter().map(|m| m.as_str().unwrap()).collect();
+    let joints = parsed.meta["skeleton"]["joints"].as_array().unwrap().len();
+    let q = parsed.quantiser().unwrap();
+    let steps = |name: &str| -> Vec<i16> {
+        parsed.block(name).unwrap().chunks_exact(2).map(|b| i16::from_le_bytes([b[0], b[1]])).collect()
+    };
+    let positions = locap_view::encode::decode_tracks(&steps("positions"), markers.len(), frames, &q);
+    let skeleton = locap_view::encode::decode_tracks(&steps("joints"), joints, frames, &q);
+    let hips: Vec<usize> =
+        ["LFWT", "RFWT", "LBWT", "RBWT"].iter().map(|n| markers.iter().position(|m| m == n).unwrap()).collect();
+    let worst = (0..frames)
+        .map(|f| {
+            let centre = hips.iter().map(|&k| positions[k][f]).sum::<locap_core::Vec3>() / 4.0;
+            (skeleton[0][f] - centre).norm()
+        })
+        .fold(0.0, f64::max);
+    assert!(worst < 80.0, "root {worst:.0} mm from the hip markers' centre");
+
+    let Some(browser) = chromium() else { return };
+    let state = state_at(&browser, &page, 1000);
+    assert_eq!(state["joints"], joints.to_string());
+    assert_eq!(joints, 38, "31 joints and 7 end sites");
+}

@@ -83,11 +83,17 @@ struct CompareMeta {
 pub const FORMAT_VERSION: u32 = 1;
 
 /// The position of `p` (in a take or motion whose vertical axis is `up`) in the viewer's
-/// axes: three.js is Y-up and right-handed, so Z-up `(x, y, z)` becomes `(x, z, -y)`.
+/// axes: three.js is Y-up and right-handed, so Z-up `(x, y, z)` becomes `(y, z, x)`.
+///
+/// Any rotation that takes Z to Y would do for markers alone; this one (a cyclic swap of the
+/// axes, no mirroring) is the one under which CMU's AMC motions (Y-up, converted to BVH)
+/// land on the markers of their C3D takes (checked on 01_01: the root follows the hip markers
+/// within 35 mm of height and a constant few cm across), so solved BVH motions in that
+/// convention overlay correctly.
 pub fn to_view_axes(p: Vec3, up: UpAxis) -> Vec3 {
     match up {
         UpAxis::Y => p,
-        UpAxis::Z => Vec3::new(p.x, p.z, -p.y),
+        UpAxis::Z => Vec3::new(p.y, p.z, p.x),
     }
 }
 
@@ -420,7 +426,7 @@ mod tests {
         let s = page.block("states").unwrap();
         assert_eq!(&s[20..28], &[0, 0, 3, 1, 1, 0, 0, 0]);
         assert!(s[..20].iter().chain(&s[40..]).all(|x| *x == 0));
-        // Positions come back in view axes (Z-up take: (x, y, z) -> (x, z, -y)).
+        // Positions come back in view axes (Z-up take: (x, y, z) -> (y, z, x)).
         let q = page.quantiser().unwrap();
         let raw: Vec<i16> =
             page.block("positions").unwrap().chunks_exact(2).map(|b| i16::from_le_bytes([b[0], b[1]])).collect();
