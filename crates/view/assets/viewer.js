@@ -218,11 +218,11 @@ async function main() {
     const tip = $('tip');
     if (!hit) { tip.hidden = true; return; }
     let text;
-    if (hit.object === jointMesh) text = `joint ${meta.skeleton.joints[hit.instanceId]}`;
+    if (hit.object === jointMesh) text = `joint ${escapeHtml(meta.skeleton.joints[hit.instanceId])}`;
     else {
       const k = (hit.object === markerMesh ? drawnMarker : drawnGhost)[hit.instanceId];
       const s = states[k * T + viewer.frame];
-      text = `${meta.markers[k]} <span style="color:${STATE_COLOURS[s]}">${STATE_LABELS[s]}</span>`;
+      text = `${escapeHtml(meta.markers[k])} <span style="color:${STATE_COLOURS[s]}">${STATE_LABELS[s]}</span>`;
       if (compare && compareStates[k * T + viewer.frame] !== 3 && s !== 3) {
         const a = point(positions, k, viewer.frame, [0, 0, 0]), b = point(compare, k, viewer.frame, [0, 0, 0]);
         text += ` &middot; ${(Math.hypot(a[0] - b[0], a[1] - b[1], a[2] - b[2]) * 1000).toFixed(1)} mm from ${escapeHtml(meta.compare.title)}`;
