@@ -278,7 +278,14 @@ fn skeleton_overlays_the_markers() {
     let dir = tempfile::tempdir().unwrap();
     let bvh = dir.path().join("01_01.bvh");
     let amc = data.join("cmu-asfamc/01/01_01.amc");
-    let out = locap().arg("convert").arg(&amc).arg(&bvh).arg("--asf").arg(data.join("cmu-asfamc/01/01.asf")).output().unwrap();
+    let out = locap()
+        .arg("convert")
+        .arg(&amc)
+        .arg(&bvh)
+        .arg("--asf")
+        .arg(data.join("cmu-asfamc/01/01.asf"))
+        .output()
+        .unwrap();
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let page = dir.path().join("01_01.html");
     let take = data.join("cmu-c3d/01_01.c3d");
@@ -309,4 +316,27 @@ fn skeleton_overlays_the_markers() {
     let state = state_at(&browser, &page, 1000);
     assert_eq!(state["joints"], joints.to_string());
     assert_eq!(joints, 38, "31 joints and 7 end sites");
+}
+
+/// A folder in, a folder of pages out (mirroring the input names); `--edges 0` leaves the
+/// neighbour edges out.
+#[test]
+fn view_writes_one_page_per_take_of_a_folder() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = locap()
+        .arg("view")
+        .arg(repo().join("examples"))
+        .arg("--edges")
+        .arg("0")
+        .arg("-o")
+        .arg(dir.path())
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let page = dir.path().join("cmu_01_01_last10s.html");
+    let parsed = locap_view::page::ParsedPage::parse(&std::fs::read_to_string(&page).unwrap()).unwrap();
+    assert_eq!(parsed.meta["frames"], 1200);
+    assert_eq!(parsed.meta["first_frame"], 1591);
+    assert_eq!(parsed.meta["edges"].as_array().unwrap().len(), 0);
+    assert!(String::from_utf8_lossy(&out.stdout).contains("1200 frames, 42 markers"));
 }
