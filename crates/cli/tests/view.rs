@@ -208,6 +208,24 @@ fn page_shows_what_clean_filled() {
     let missing = count(frame, locap_view::SampleState::Missing);
     assert_eq!(state["missing"], missing.to_string());
     assert_eq!(state["spheres"], (m - missing).to_string());
+    // The raw take inside a real gap: the missing marker is not a sphere but a ghost where it
+    // was last seen.
+    let raw_page = dir.path().join("raw.html");
+    assert!(locap().arg("view").arg(&raw).arg("-o").arg(&raw_page).output().unwrap().status.success());
+    let raw_take = locap_io::c3d::read_path(&raw).unwrap().to_take().unwrap();
+    let gap_frame = (0..raw_take.frame_count())
+        .find(|f| (0..m).filter(|k| !raw_take.is_valid(*f, *k)).count() >= 2)
+        .expect("the example has frames with a real gap besides the never-seen RBAC-1");
+    let missing = (0..m).filter(|k| !raw_take.is_valid(gap_frame, *k)).count();
+    let raw_state = state_at(&browser, &raw_page, gap_frame);
+    assert_eq!(raw_state["missing"], missing.to_string(), "{raw_state:?}");
+    assert_eq!(raw_state["spheres"], (m - missing).to_string());
+    // Markers never seen in the take (the split label `RBAC-1`) have no last position.
+    let seen = |k: usize| (0..raw_take.frame_count()).any(|f| raw_take.is_valid(f, k));
+    let ghosts = (0..m).filter(|k| !raw_take.is_valid(gap_frame, *k) && seen(*k)).count();
+    assert!(ghosts >= 1);
+    assert_eq!(raw_state["ghosts"], ghosts.to_string());
+
     let (errors, _) =
         locap_view::page::per_frame_error_mm(&take, &locap_io::c3d::read_path(&raw).unwrap().to_take().unwrap())
             .unwrap();

@@ -243,6 +243,8 @@ async function main() {
     mesh.setMatrixAt(i, matrix);
   };
   const followTarget = new THREE.Vector3();
+  // A marker never seen has no last position to show.
+  const everSeen = Array.from({ length: M }, (_, k) => states.subarray(k * T, (k + 1) * T).some((s) => s !== 3));
   function drawFrame(f) {
     const counts = [0, 0, 0, 0];
     let drawn = 0, ghosts = 0;
@@ -251,7 +253,7 @@ async function main() {
       counts[s]++;
       point(positions, k, f, p);
       if (s === 3) {
-        if (options.ghosts) { place(ghostMesh, ghosts, p); drawnGhost[ghosts++] = k; }
+        if (options.ghosts && everSeen[k]) { place(ghostMesh, ghosts, p); drawnGhost[ghosts++] = k; }
       } else {
         place(markerMesh, drawn, p);
         markerMesh.setColorAt(drawn, stateColours[s]);

@@ -466,6 +466,25 @@ mod tests {
     }
 
     #[test]
+    fn empty_takes_still_make_a_page() {
+        for t in [Take::empty(vec![], 10, 100.0).unwrap(), Take::empty(vec![MarkerName::parse("A")], 0, 100.0).unwrap()]
+        {
+            let states = sample_states(&t, &[], &[]).unwrap();
+            let input = ViewInput {
+                title: "e".into(),
+                take: &t,
+                states: &states,
+                motion: None,
+                compare: None,
+                neighbour_edges: 2,
+            };
+            let page = ParsedPage::parse(&render(&input).unwrap()).unwrap();
+            assert_eq!(page.block("positions").unwrap().len(), 0);
+            assert_eq!(page.meta["edges"].as_array().unwrap().len(), 0);
+        }
+    }
+
+    #[test]
     fn per_frame_error_matches_markers_by_name() {
         let a = take(4);
         let mut b = take(4);
