@@ -357,4 +357,16 @@ fn view_writes_one_page_per_take_of_a_folder() {
     assert_eq!(parsed.meta["first_frame"], 1591);
     assert_eq!(parsed.meta["edges"].as_array().unwrap().len(), 0);
     assert!(String::from_utf8_lossy(&out.stdout).contains("1200 frames, 42 markers"));
+
+    // TRC takes too (every sample captured or missing: TRC has no LOCAP parameters).
+    let trc = dir.path().join("take.trc");
+    assert!(
+        locap().arg("convert").arg(repo().join("examples/cmu_01_01_last10s.c3d")).arg(&trc).status().unwrap().success()
+    );
+    let trc_page = dir.path().join("trc.html");
+    let out = locap().arg("view").arg(&trc).arg("-o").arg(&trc_page).output().unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let parsed = locap_view::page::ParsedPage::parse(&std::fs::read_to_string(&trc_page).unwrap()).unwrap();
+    assert_eq!(parsed.meta["frames"], 1200);
+    assert_eq!(parsed.meta["state_counts"][1], 0, "nothing filled");
 }

@@ -52,13 +52,16 @@ async function block(name) {
   return array;
 }
 
-// Prefix sums per track undo the delta coding (wrapping like the encoder's i16 arithmetic).
+// Prefix sums per track (delta_order of them) undo the differencing, wrapping like the
+// encoder's i16 arithmetic.
 function undelta(steps) {
   for (let c = 0; c < steps.length; c += T) {
-    let v = 0;
-    for (let f = c; f < c + T; f++) {
-      v = ((v + steps[f]) << 16) >> 16;
-      steps[f] = v;
+    for (let order = 0; order < meta.delta_order; order++) {
+      let v = 0;
+      for (let f = c; f < c + T; f++) {
+        v = ((v + steps[f]) << 16) >> 16;
+        steps[f] = v;
+      }
     }
   }
   return steps;

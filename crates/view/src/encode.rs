@@ -5,12 +5,13 @@
 //!
 //! 1. **Quantise** each axis to `i16` over the range the data covers ([`Quantiser`]): a 10 m
 //!    capture volume gives 0.15 mm steps, far below marker noise (about 1 mm).
-//! 2. **Track-major deltas**: each track (one axis of one marker or joint) is stored frame
-//!    after frame as the difference to the previous frame (wrapping `i16` arithmetic, so the
-//!    browser undoes it with a prefix sum in an `Int16Array`). Smooth motion turns into small
-//!    numbers that compress well. A missing sample repeats the last known position (the first
-//!    known one before it), so gaps cost nothing and the page can draw a "ghost" where a
-//!    missing marker was last seen.
+//! 2. **Track-major second differences**: each track (one axis of one marker or joint) is
+//!    stored frame after frame, differenced twice ([`DELTA_ORDER`]; wrapping `i16`
+//!    arithmetic, so the browser undoes it with two prefix sums in an `Int16Array`). Smooth
+//!    motion turns into small numbers that compress well: on the HDM05 take the compressed
+//!    positions are 22% smaller than with one difference (14% on a noisy synthetic take). A
+//!    missing sample repeats the last known position (the first known one before it), so
+//!    gaps cost nothing and the page can draw a "ghost" where a missing marker was last seen.
 //! 3. **zlib** ([`flate2`]) and **base64**: the browser inflates with its native
 //!    `DecompressionStream("deflate")`, no JavaScript inflater needed.
 //!
@@ -75,10 +76,15 @@ impl Quantiser {
     }
 }
 
+/// How many times each track is differenced (the page's JSON header carries it as
+/// `delta_order`).
+pub const DELTA_ORDER: usize = 2;
+
 /// Encodes `tracks` (one per marker or joint, each with one optional position per frame, all
-/// of the same length) as track-major, axis-minor delta-coded steps: element
-/// `(track * 3 + axis) * frames + frame`. Missing samples repeat the last known position (the
-/// first known one for a leading gap; the quantiser's origin if the track is never seen).
+/// of the same length) as track-major, axis-minor steps differenced [`DELTA_ORDER`] times:
+/// element `(track * 3 + axis) * frames + frame`. Missing samples repeat the last known
+/// position (the first known one for a leading gap; the quantiser's origin if the track is
+/// never seen).
 pub fn encode_tracks(tracks: &[Vec<Option<Vec3>>], q: &Quantiser) -> Vec<i16> {
     let frames = tracks.first().map_or(0, Vec::len);
     let mut out = Vec::with_capacity(tracks.len() * 3 * frames);
@@ -96,11 +102,14 @@ pub fn encode_tracks(tracks: &[Vec<Option<Vec3>>], q: &Quantiser) -> Vec<i16> {
             })
             .collect();
         for a in 0..3 {
-            let mut previous = 0i16;
-            for s in &steps {
-                out.push(s[a].wrapping_sub(previous));
-                previous = s[a];
+            let mut channel: Vec<i16> = steps.iter().map(|s| s[a]).collect();
+            for _ in 0..DELTA_ORDER {
+                let mut previous = 0i16;
+                for v in &mut channel {
+                    (*v, previous) = (v.wrapping_sub(previous), *v);
+                }
             }
+            out.extend(channel);
         }
     }
     out
@@ -110,14 +119,17 @@ pub fn encode_tracks(tracks: &[Vec<Option<Vec3>>], q: &Quantiser) -> Vec<i16> {
 pub fn decode_tracks(deltas: &[i16], tracks: usize, frames: usize, q: &Quantiser) -> Vec<Vec<Vec3>> {
     (0..tracks)
         .map(|t| {
-            let mut axes = [vec![0i16; frames], vec![0i16; frames], vec![0i16; frames]];
-            for (a, axis) in axes.iter_mut().enumerate() {
-                let mut value = 0i16;
-                for (f, v) in axis.iter_mut().enumerate() {
-                    value = value.wrapping_add(deltas[(t * 3 + a) * frames + f]);
-                    *v = value;
+            let axes: [Vec<i16>; 3] = std::array::from_fn(|a| {
+                let mut channel = deltas[(t * 3 + a) * frames..(t * 3 + a + 1) * frames].to_vec();
+                for _ in 0..DELTA_ORDER {
+                    let mut value = 0i16;
+                    for v in &mut channel {
+                        value = value.wrapping_add(*v);
+                        *v = value;
+                    }
                 }
-            }
+                channel
+            });
             (0..frames).map(|f| q.dequantise([axes[0][f], axes[1][f], axes[2][f]])).collect()
         })
         .collect()

@@ -51,6 +51,7 @@ struct Meta {
     rate_hz: f64,
     markers: Vec<String>,
     quant: Quantiser,
+    delta_order: usize,
     blocks: Vec<BlockInfo>,
     edges: Vec<[usize; 2]>,
     state_names: Vec<&'static str>,
@@ -262,6 +263,7 @@ pub fn render(input: &ViewInput<'_>) -> Result<String, ViewError> {
         rate_hz: take.frame_rate_hz(),
         markers: take.markers().iter().map(|n| n.full()).collect(),
         quant,
+        delta_order: encode::DELTA_ORDER,
         blocks: blocks
             .iter()
             .map(|(info, _)| BlockInfo { name: info.name, dtype: info.dtype, len: info.len })
