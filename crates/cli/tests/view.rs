@@ -3,7 +3,9 @@
 //! Chromium's own command line is the driver (no npm in CI): `--dump-dom` with a virtual time
 //! budget returns the DOM once the page's scripts are done, and the viewer reports its state
 //! as data attributes on `<body>`; `--screenshot` captures the WebGL canvas (rendered with
-//! SwiftShader, so no GPU is needed). `.ci/run` installs the Debian `chromium` package; where
+//! SwiftShader, so no GPU is needed). Virtual time runs no animation frames, so playback,
+//! keys, clicks and hover are tested in real time through the DevTools protocol (`mod cdp`,
+//! a minimal WebSocket client over `--remote-debugging-port`). `.ci/run` installs the Debian `chromium` package; where
 //! it is missing the test is skipped with a message, except in CI (env `CI` set), where it
 //! fails.
 
@@ -51,26 +53,28 @@ fn chromium() -> Option<PathBuf> {
 
 const WINDOW: (u32, u32) = (1100, 800);
 
+/// Headless, a fresh profile per run (added by the callers), nothing that talks to the
+/// network, WebGL through SwiftShader (no GPU needed).
+const CHROMIUM_FLAGS: [&str; 10] = [
+    "--headless",
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-quic",
+    "--no-first-run",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+    "--use-angle=swiftshader",
+    "--enable-unsafe-swiftshader",
+];
+
 /// Runs headless Chromium on `url` with `extra` arguments; returns standard output. A fresh
 /// profile per run, nothing that talks to the network, WebGL through SwiftShader.
 fn run_chromium(browser: &Path, url: &str, extra: &[String]) -> String {
     let profile = tempfile::tempdir().unwrap();
     let mut child = Command::new(browser)
-        .args([
-            "--headless",
-            "--no-sandbox",
-            "--disable-gpu",
-            "--disable-quic",
-            "--no-first-run",
-            "--disable-background-networking",
-            "--disable-component-update",
-            "--disable-sync",
-            "--use-angle=swiftshader",
-            "--enable-unsafe-swiftshader",
-            "--hide-scrollbars",
-            &format!("--window-size={},{}", WINDOW.0, WINDOW.1),
-            "--virtual-time-budget=5000",
-        ])
+        .args(CHROMIUM_FLAGS)
+        .args(["--hide-scrollbars", &format!("--window-size={},{}", WINDOW.0, WINDOW.1), "--virtual-time-budget=5000"])
         .arg(format!("--user-data-dir={}", profile.path().display()))
         .args(extra)
         .arg(url)
@@ -369,4 +373,272 @@ fn view_writes_one_page_per_take_of_a_folder() {
     let parsed = locap_view::page::ParsedPage::parse(&std::fs::read_to_string(&trc_page).unwrap()).unwrap();
     assert_eq!(parsed.meta["frames"], 1200);
     assert_eq!(parsed.meta["state_counts"][1], 0, "nothing filled");
+}
+
+/// A minimal client of the Chrome DevTools protocol (JSON over one WebSocket), enough to
+/// press keys, click and read values in a page: what a user does, without npm tooling.
+mod cdp {
+    use std::io::{BufRead, BufReader, Read, Write};
+    use std::net::TcpStream;
+    use std::process::{Child, Command, Stdio};
+    use std::time::{Duration, Instant};
+
+    /// A headless Chromium with remote debugging, and a WebSocket to its page.
+    pub struct Browser {
+        child: Child,
+        socket: TcpStream,
+        next_id: u64,
+        _profile: tempfile::TempDir,
+    }
+
+    impl Drop for Browser {
+        fn drop(&mut self) {
+            let _ = self.child.kill();
+            let _ = self.child.wait();
+        }
+    }
+
+    /// The body of an HTTP GET (the DevTools server keeps connections open: read
+    /// Content-Length bytes).
+    fn http_get(port: u16, path: &str) -> String {
+        let mut s = TcpStream::connect(("127.0.0.1", port)).unwrap();
+        s.set_read_timeout(Some(Duration::from_secs(10))).unwrap();
+        write!(s, "GET {path} HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\n\r\n").unwrap();
+        let mut reader = BufReader::new(s);
+        let mut length = 0;
+        loop {
+            let mut line = String::new();
+            if reader.read_line(&mut line).unwrap_or(0) == 0 || line == "\r\n" {
+                break;
+            }
+            if let Some((name, value)) = line.split_once(':')
+                && name.eq_ignore_ascii_case("content-length")
+            {
+                length = value.trim().parse().unwrap_or(0);
+            }
+        }
+        let mut body = vec![0u8; length];
+        reader.read_exact(&mut body).unwrap();
+        String::from_utf8_lossy(&body).into_owned()
+    }
+
+    impl Browser {
+        /// Starts Chromium on `url` (flags as in `run_chromium`, real time) and connects to the
+        /// page.
+        pub fn open(browser: &std::path::Path, url: &str, window: (u32, u32)) -> Browser {
+            let profile = tempfile::tempdir().unwrap();
+            let mut child = Command::new(browser)
+                .args(super::CHROMIUM_FLAGS)
+                .args(["--remote-debugging-port=0", &format!("--window-size={},{}", window.0, window.1)])
+                .arg(format!("--user-data-dir={}", profile.path().display()))
+                .arg(url)
+                .stdout(Stdio::null())
+                .stderr(Stdio::piped())
+                .spawn()
+                .unwrap();
+            // "DevTools listening on ws://127.0.0.1:PORT/devtools/browser/..."
+            let stderr = child.stderr.take().unwrap();
+            let (tx, rx) = std::sync::mpsc::channel();
+            std::thread::spawn(move || {
+                for line in BufReader::new(stderr).lines().map_while(Result::ok) {
+                    if let Some(rest) = line.split("ws://127.0.0.1:").nth(1) {
+                        let _ = tx.send(rest.split('/').next().unwrap_or_default().parse::<u16>().unwrap_or(0));
+                    }
+                }
+            });
+            let port = rx.recv_timeout(Duration::from_secs(30)).expect("chromium prints its DevTools port");
+            let started = Instant::now();
+            let ws_url = loop {
+                let list: serde_json::Value = serde_json::from_str(&http_get(port, "/json/list")).unwrap_or_default();
+                let page = list.as_array().and_then(|l| l.iter().find(|t| t["type"] == "page").cloned());
+                if let Some(url) = page.and_then(|p| p["webSocketDebuggerUrl"].as_str().map(String::from)) {
+                    break url;
+                }
+                assert!(started.elapsed() < Duration::from_secs(30), "no page target");
+                std::thread::sleep(Duration::from_millis(100));
+            };
+            let path = &ws_url[ws_url.find("/devtools").unwrap()..];
+            let mut socket = TcpStream::connect(("127.0.0.1", port)).unwrap();
+            socket.set_read_timeout(Some(Duration::from_secs(60))).unwrap();
+            write!(
+                socket,
+                "GET {path} HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n\
+                 Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nSec-WebSocket-Version: 13\r\n\r\n"
+            )
+            .unwrap();
+            let mut head = Vec::new();
+            let mut byte = [0u8; 1];
+            while !head.ends_with(b"\r\n\r\n") {
+                socket.read_exact(&mut byte).unwrap();
+                head.push(byte[0]);
+            }
+            assert!(head.starts_with(b"HTTP/1.1 101"), "{}", String::from_utf8_lossy(&head));
+            Browser { child, socket, next_id: 1, _profile: profile }
+        }
+
+        fn send_frame(&mut self, payload: &[u8]) {
+            let mut frame = vec![0x81u8]; // FIN, text
+            let mask = [0x12u8, 0x34, 0x56, 0x78];
+            match payload.len() {
+                n if n < 126 => frame.push(0x80 | n as u8),
+                n if n < 65536 => {
+                    frame.push(0x80 | 126);
+                    frame.extend((n as u16).to_be_bytes());
+                }
+                n => {
+                    frame.push(0x80 | 127);
+                    frame.extend((n as u64).to_be_bytes());
+                }
+            }
+            frame.extend(mask);
+            frame.extend(payload.iter().enumerate().map(|(i, b)| b ^ mask[i % 4]));
+            self.socket.write_all(&frame).unwrap();
+        }
+
+        fn read_message(&mut self) -> String {
+            let mut message = Vec::new();
+            loop {
+                let mut head = [0u8; 2];
+                self.socket.read_exact(&mut head).unwrap();
+                let mut len = u64::from(head[1] & 0x7f);
+                if len == 126 {
+                    let mut b = [0u8; 2];
+                    self.socket.read_exact(&mut b).unwrap();
+                    len = u64::from(u16::from_be_bytes(b));
+                } else if len == 127 {
+                    let mut b = [0u8; 8];
+                    self.socket.read_exact(&mut b).unwrap();
+                    len = u64::from_be_bytes(b);
+                }
+                let mut payload = vec![0u8; len as usize];
+                self.socket.read_exact(&mut payload).unwrap();
+                message.extend(payload);
+                if head[0] & 0x80 != 0 {
+                    return String::from_utf8_lossy(&message).into_owned();
+                }
+            }
+        }
+
+        /// Sends a command and returns its `result` (or the error reply), skipping events.
+        fn try_call(
+            &mut self,
+            method: &str,
+            params: &serde_json::Value,
+        ) -> Result<serde_json::Value, serde_json::Value> {
+            let id = self.next_id;
+            self.next_id += 1;
+            let text = serde_json::json!({ "id": id, "method": method, "params": params }).to_string();
+            self.send_frame(text.as_bytes());
+            loop {
+                let reply: serde_json::Value = serde_json::from_str(&self.read_message()).unwrap();
+                if reply["id"] == id {
+                    return if reply.get("error").is_some() { Err(reply) } else { Ok(reply["result"].clone()) };
+                }
+            }
+        }
+
+        /// Sends a command and returns its `result`; while the page is still loading (its
+        /// script context replaced), tries again for up to 30 s.
+        pub fn call(&mut self, method: &str, params: serde_json::Value) -> serde_json::Value {
+            let started = Instant::now();
+            loop {
+                match self.try_call(method, &params) {
+                    Ok(result) => return result,
+                    Err(reply) if started.elapsed() < Duration::from_secs(30) => {
+                        eprintln!("{method}: {reply}, trying again");
+                        std::thread::sleep(Duration::from_millis(100));
+                    }
+                    Err(reply) => panic!("{method}: {reply}"),
+                }
+            }
+        }
+
+        /// Evaluates `expression` in the page (awaiting a promise) and returns its value.
+        pub fn eval(&mut self, expression: &str) -> serde_json::Value {
+            let r = self.call(
+                "Runtime.evaluate",
+                serde_json::json!({ "expression": expression, "awaitPromise": true, "returnByValue": true }),
+            );
+            assert!(r.get("exceptionDetails").is_none(), "{expression}: {r}");
+            r["result"]["value"].clone()
+        }
+
+        /// Presses and releases a key (`key` as in KeyboardEvent.key).
+        pub fn key(&mut self, key: &str, code: u32) {
+            for kind in ["keyDown", "keyUp"] {
+                self.call(
+                    "Input.dispatchKeyEvent",
+                    serde_json::json!({ "type": kind, "key": key, "code": key, "windowsVirtualKeyCode": code }),
+                );
+            }
+        }
+
+        /// Clicks with the left button at page coordinates.
+        pub fn click(&mut self, x: f64, y: f64) {
+            for kind in ["mouseMoved", "mousePressed", "mouseReleased"] {
+                self.call(
+                    "Input.dispatchMouseEvent",
+                    serde_json::json!({ "type": kind, "x": x, "y": y, "button": "left", "buttons": if kind == "mousePressed" { 1 } else { 0 }, "clickCount": 1 }),
+                );
+            }
+        }
+    }
+}
+
+/// What a user does, in a running page (real time, DevTools protocol): the right arrow steps
+/// one frame, a click in the middle of the gap chart jumps to the middle of the take, the
+/// play button plays it at its frame rate, and hovering over a sphere names its marker.
+#[test]
+fn page_answers_keys_clicks_and_playback() {
+    let Some(data) = shared_data() else { return };
+    let Some(browser) = chromium() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let page = dir.path().join("85_02.html");
+    let out = locap().arg("view").arg(data.join("cmu-c3d/85_02.c3d")).arg("-o").arg(&page).output().unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let mut b = cdp::Browser::open(&browser, &format!("file://{}", page.display()), WINDOW);
+    let ready = b.eval(
+        "new Promise((resolve) => { const started = performance.now(); const check = () => \
+         (document.body.dataset.ready === '1' || document.body.dataset.error || performance.now() - started > 30000) \
+         ? resolve(document.body.dataset.error || document.body.dataset.ready) : setTimeout(check, 50); check(); })",
+    );
+    assert_eq!(ready, "1");
+    assert_eq!(b.eval("locapViewer.frame"), 0);
+
+    // Hover: the marker under the pointer is named.
+    let at = b.eval("locapViewer.screenPosition(20)");
+    let name = b.eval("locapViewer.meta.markers[20]").as_str().unwrap().to_string();
+    b.call("Input.dispatchMouseEvent", serde_json::json!({ "type": "mouseMoved", "x": at["x"], "y": at["y"] }));
+    let tip = b.eval(
+        "new Promise((r) => requestAnimationFrame(() => requestAnimationFrame(() => \
+                      r(document.getElementById('tip').hidden ? '' : document.getElementById('tip').textContent))))",
+    );
+    assert!(tip.as_str().unwrap().starts_with(&name), "hovering marker 20 ({name}) shows {tip}");
+
+    b.key("ArrowRight", 39);
+    assert_eq!(b.eval("locapViewer.frame"), 1);
+    assert_eq!(b.eval("document.body.dataset.frame"), "1");
+    assert_eq!(b.eval("location.hash"), "#frame=1", "the address follows the scrub");
+
+    let frames = b.eval("locapViewer.frames").as_f64().unwrap();
+    let rect = b.eval("(() => { const r = document.getElementById('gaps').getBoundingClientRect(); return [r.left, r.top, r.width]; })()");
+    let (left, top, width) = (rect[0].as_f64().unwrap(), rect[1].as_f64().unwrap(), rect[2].as_f64().unwrap());
+    // The chart's frames run from 96 px (marker names) to 10 px before its right edge.
+    b.click(left + 96.0 + (width - 106.0) / 2.0, top + 20.0);
+    let middle = b.eval("locapViewer.frame").as_f64().unwrap();
+    assert!((middle - frames / 2.0).abs() <= frames * 0.01 + 1.0, "clicked the middle, got frame {middle} of {frames}");
+
+    let rect = b.eval("(() => { const r = document.getElementById('play').getBoundingClientRect(); return [r.left + r.width / 2, r.top + r.height / 2]; })()");
+    b.click(rect[0].as_f64().unwrap(), rect[1].as_f64().unwrap());
+    let started = b.eval("[locapViewer.playing, locapViewer.frame, performance.now()]");
+    assert_eq!(started[0], true);
+    std::thread::sleep(std::time::Duration::from_millis(1500));
+    let later = b.eval("[locapViewer.frame, performance.now()]");
+    let advanced = later[0].as_f64().unwrap() - started[1].as_f64().unwrap();
+    let seconds = (later[1].as_f64().unwrap() - started[2].as_f64().unwrap()) / 1000.0;
+    // 120 Hz at 1x: the frame follows the clock, give or take a few animation frames
+    // (counted modulo the take, which loops at its end).
+    let advanced = (advanced + frames) % frames;
+    eprintln!("playback: {advanced} frames in {seconds:.2} s");
+    assert!((advanced - 120.0 * seconds).abs() < 0.25 * 120.0 * seconds + 10.0, "{advanced} frames in {seconds:.2} s");
 }

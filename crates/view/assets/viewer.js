@@ -448,6 +448,13 @@ async function main() {
   };
   window.addEventListener('hashchange', () => { const h = fromHash(); if (h.frame !== null && Number.isFinite(h.frame)) { pause(); setFrame(h.frame, false); } });
   viewer.setFrame = (f) => { pause(); setFrame(f, false); return viewer.frame; };
+  // Where marker k is drawn at the current frame, in page pixels (null if off screen).
+  viewer.screenPosition = (k) => {
+    const v = new THREE.Vector3(...point(positions, k, viewer.frame, [0, 0, 0])).project(camera);
+    if (Math.abs(v.x) > 1 || Math.abs(v.y) > 1 || v.z > 1) return null;
+    const rect = canvas.getBoundingClientRect();
+    return { x: rect.left + ((v.x + 1) / 2) * rect.width, y: rect.top + ((1 - v.y) / 2) * rect.height };
+  };
   viewer.play = play;
   viewer.pause = pause;
 
