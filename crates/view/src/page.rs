@@ -7,10 +7,14 @@
 //! (three.js: Y up, millimetres) here, so the script knows nothing of C3D axes.
 //!
 //! For tests and scripts the page reports its state on `<body>` as data attributes
-//! (`data-ready`, `data-frame`, `data-spheres`, `data-visible`, `data-filled`,
-//! `data-outlier`, `data-missing`, `data-joints`, `data-error-mm`, `data-load-ms`) and in
-//! `window.locapViewer`; `#frame=N` in the URL (0-based frame index) opens or moves it to a
-//! frame.
+//! (`data-ready`, `data-error` if it cannot show the take, `data-frame`, `data-spheres`
+//! (markers drawn), `data-ghosts` (missing markers drawn where last seen), `data-visible`,
+//! `data-filled`, `data-outlier`, `data-missing` (counts at the frame), `data-joints`,
+//! `data-compared`, `data-error-mm`, `data-load-ms`) and in `window.locapViewer` (the same
+//! values, `timings` of the loading steps, and `setFrame(n)`, `play()`, `pause()`,
+//! `screenPosition(marker)`); `#frame=N` in the URL (0-based frame index) opens or moves it
+//! to a frame, `&play=1` starts playback, `&theta=`, `&phi=`, `&radius=` (radians, metres)
+//! place the camera.
 
 use crate::ViewError;
 use crate::encode::{self, Quantiser};
