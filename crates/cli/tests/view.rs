@@ -258,6 +258,12 @@ fn view_reports_mismatched_inputs() {
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(stderr.contains("the --motion file has") && stderr.contains("but the take has 1200"), "{stderr}");
     assert!(!dir.path().join("x.html").exists(), "no page for a failed take");
+    let copy = dir.path().join("copy.c3d");
+    std::fs::copy(&take, &copy).unwrap();
+    let out = locap().arg("view").arg(&copy).arg("-o").arg(&copy).output().unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("never overwrites its input"));
+    assert_eq!(std::fs::read(&copy).unwrap(), std::fs::read(&take).unwrap());
     let out =
         locap().arg("view").arg(&take).arg(&take).arg("--motion").arg(&bvh).arg("-o").arg(dir.path()).output().unwrap();
     assert_eq!(out.status.code(), Some(2));

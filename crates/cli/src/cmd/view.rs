@@ -76,6 +76,9 @@ pub fn run(args: Args) -> Result<ExitCode> {
         None => None,
     };
     let (done, failed) = crate::run_takes(&files, "writing pages", |i, input| {
+        if input == targets[i] {
+            bail!("{}: input and output are the same file; locap never overwrites its input", input.display());
+        }
         inputs::create_parent(&targets[i])?;
         let (take, states) = read_take(input)?;
         let up = match args.motion_up {
