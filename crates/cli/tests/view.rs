@@ -569,6 +569,27 @@ mod cdp {
             r["result"]["value"].clone()
         }
 
+        /// Waits (up to 60 s) until the viewer page is ready or reports an error, and returns
+        /// `data-ready` or the error. Polls from here: the browser starts on about:blank, and
+        /// a script context can vanish under an evaluation while the page replaces it.
+        pub fn wait_ready(&mut self) -> String {
+            let started = Instant::now();
+            let expression = "location.protocol === 'file:' && document.body \
+                              ? (document.body.dataset.error || document.body.dataset.ready || '') : ''";
+            loop {
+                let params = serde_json::json!({ "expression": expression, "returnByValue": true });
+                if let Ok(r) = self.try_call("Runtime.evaluate", &params)
+                    && let Some(state) = r["result"]["value"].as_str()
+                    && !state.is_empty()
+                    && state != "0"
+                {
+                    return state.to_string();
+                }
+                assert!(started.elapsed() < Duration::from_secs(60), "the page did not get ready in 60 s");
+                std::thread::sleep(Duration::from_millis(50));
+            }
+        }
+
         /// Presses and releases a key (`key` as in KeyboardEvent.key).
         pub fn key(&mut self, key: &str, code: u32) {
             for kind in ["keyDown", "keyUp"] {
@@ -603,12 +624,7 @@ fn page_answers_keys_clicks_and_playback() {
     let out = locap().arg("view").arg(data.join("cmu-c3d/85_02.c3d")).arg("-o").arg(&page).output().unwrap();
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let mut b = cdp::Browser::open(&browser, &format!("file://{}", page.display()), WINDOW);
-    let ready = b.eval(
-        "new Promise((resolve) => { const started = performance.now(); const check = () => \
-         (document.body.dataset.ready === '1' || document.body.dataset.error || performance.now() - started > 30000) \
-         ? resolve(document.body.dataset.error || document.body.dataset.ready) : setTimeout(check, 50); check(); })",
-    );
-    assert_eq!(ready, "1");
+    assert_eq!(b.wait_ready(), "1");
     assert_eq!(b.eval("locapViewer.frame"), 0);
 
     // Hover: the marker under the pointer is named.
