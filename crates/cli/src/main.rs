@@ -46,6 +46,10 @@ enum Command {
     /// Hand skeleton motion and the hand marker layout from an ART hand export, plus
     /// procedural finger motion within joint limits.
     Hands(cmd::hands::Args),
+    /// Write a self-contained HTML page that plays a take (markers, fills, skeleton).
+    View(cmd::view::Args),
+    /// Draw PNG/SVG charts: gap lengths, occlusion rates, fill error by gap length.
+    Plot(cmd::plot::Args),
 }
 
 fn main() -> ExitCode {
@@ -61,6 +65,8 @@ fn main() -> ExitCode {
         Command::Stats(args) => cmd::stats::run(args),
         Command::Synth(args) => cmd::synth::run(args),
         Command::Hands(args) => cmd::hands::run(args),
+        Command::View(args) => cmd::view::run(args),
+        Command::Plot(args) => cmd::plot::run(args),
     };
     match result {
         Ok(code) => code,

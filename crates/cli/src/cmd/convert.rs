@@ -52,7 +52,7 @@ fn parse_range(text: &str) -> Result<std::ops::Range<usize>, String> {
     Ok(a..b)
 }
 
-fn parse_unit(text: &str) -> Result<LengthUnit, String> {
+pub(crate) fn parse_unit(text: &str) -> Result<LengthUnit, String> {
     LengthUnit::parse(text).ok_or_else(|| format!("unknown length unit {text:?} (mm, cm, m, in)"))
 }
 

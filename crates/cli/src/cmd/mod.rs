@@ -7,6 +7,8 @@ pub mod hands;
 pub mod info;
 pub mod label;
 pub mod layout;
+pub mod plot;
 pub mod stats;
 pub mod synth;
 pub mod unlabel;
+pub mod view;

@@ -1,0 +1,128 @@
+//! `locap view`: one self-contained HTML page per take that plays it in any browser.
+//!
+//! The page (built by `locap_view::page`) shows markers coloured by what locap did to each
+//! sample, read from the `LOCAP:FILLED` / `LOCAP:OUTLIERS` parameters `locap clean` writes;
+//! with `--motion` a solved skeleton on top, with `--compare` a second take (e.g. the ground
+//! truth) and the distance to it per frame. No network is needed to open it.
+
+use crate::inputs;
+use anyhow::{Context, Result, bail};
+use clap::{Parser, ValueEnum};
+use locap_core::{LengthUnit, Take, UpAxis};
+use locap_io::{bvh, c3d, csv, trc};
+use locap_view::{SampleState, ViewInput};
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+
+/// Arguments of `locap view`.
+#[derive(Parser, Debug)]
+#[command(after_help = "Examples:\n  locap view cleaned.c3d -o cleaned.html\n  \
+                        locap view filled.c3d --compare truth.c3d --motion solved.bvh -o check.html\n  \
+                        locap view takes/ -o pages/")]
+pub struct Args {
+    /// Takes (C3D, TRC or CSV), or folders searched recursively.
+    #[arg(required = true, value_name = "FILE")]
+    inputs: Vec<PathBuf>,
+    /// Output HTML file (one input) or folder (several inputs or a folder).
+    #[arg(short, long, value_name = "PATH", help_heading = "Output")]
+    output: PathBuf,
+    /// Solved skeleton motion (BVH) to draw over the markers; same frames as the take.
+    #[arg(long, value_name = "BVH", help_heading = "Overlays")]
+    motion: Option<PathBuf>,
+    /// Length unit of the BVH file (BVH does not record it).
+    #[arg(long, default_value = "cm", value_parser = crate::cmd::convert::parse_unit, value_name = "UNIT", help_heading = "Overlays")]
+    bvh_unit: LengthUnit,
+    /// Vertical axis of the motion (BVH files are Y-up by convention).
+    #[arg(long, value_enum, default_value_t = Up::Y, help_heading = "Overlays")]
+    motion_up: Up,
+    /// A second take to overlay (e.g. ground truth); markers matched by name, same frames.
+    #[arg(long, value_name = "TAKE", help_heading = "Overlays")]
+    compare: Option<PathBuf>,
+    /// Neighbour edges per marker (its most stable neighbours); 0 for none.
+    #[arg(long, default_value_t = 2, value_name = "N", help_heading = "Overlays")]
+    edges: usize,
+}
+
+/// Vertical axis on the command line.
+#[derive(Debug, Clone, Copy, ValueEnum)]
+pub enum Up {
+    /// +Y up.
+    Y,
+    /// +Z up.
+    Z,
+}
+
+/// Runs `locap view`.
+pub fn run(args: Args) -> Result<ExitCode> {
+    let files = inputs::expand(&args.inputs, &["c3d", "trc", "csv"])?;
+    let single = files.len() == 1 && args.inputs.len() == 1 && !args.inputs[0].is_dir() && !args.output.is_dir();
+    if !single && (args.motion.is_some() || args.compare.is_some()) {
+        bail!("--motion and --compare go with a single take ({} given)", files.len());
+    }
+    if !single {
+        std::fs::create_dir_all(&args.output)
+            .with_context(|| format!("{}: cannot create output folder", args.output.display()))?;
+    }
+    let targets =
+        if single { vec![args.output.clone()] } else { inputs::output_paths(&files, &args.output, Some("html")) };
+    let motion = match &args.motion {
+        Some(path) => Some(bvh::read_bvh_path(path, args.bvh_unit)?),
+        None => None,
+    };
+    let compare = match &args.compare {
+        Some(path) => {
+            Some((read_take(path)?.0, path.file_name().map_or_else(String::new, |n| n.to_string_lossy().into())))
+        }
+        None => None,
+    };
+    let (done, failed) = crate::run_takes(&files, "writing pages", |i, input| {
+        if input == targets[i] {
+            bail!("{}: input and output are the same file; locap never overwrites its input", input.display());
+        }
+        inputs::create_parent(&targets[i])?;
+        let (take, states) = read_take(input)?;
+        let up = match args.motion_up {
+            Up::Y => UpAxis::Y,
+            Up::Z => UpAxis::Z,
+        };
+        let page = locap_view::render(&ViewInput {
+            title: input.file_name().map_or_else(|| input.display().to_string(), |n| n.to_string_lossy().into()),
+            take: &take,
+            states: &states,
+            motion: motion.as_ref().map(|m| (m, up)),
+            compare: compare.as_ref().map(|(t, name)| (t, name.clone())),
+            neighbour_edges: args.edges,
+        })
+        .with_context(|| format!("{}", input.display()))?;
+        locap_io::atomic::write_atomically(&targets[i], |w| Ok(w.write_all(page.as_bytes())?))?;
+        Ok(format!(
+            "{} -> {} ({} frames, {} markers, {:.1} MB)\n",
+            input.display(),
+            targets[i].display(),
+            take.frame_count(),
+            take.marker_count(),
+            page.len() as f64 / 1e6
+        ))
+    });
+    crate::emit(&done.into_iter().map(|(_, line)| line).collect::<String>())?;
+    Ok(if failed > 0 { ExitCode::from(1) } else { ExitCode::SUCCESS })
+}
+
+/// Reads a take and the state of its samples (from `LOCAP:FILLED` / `LOCAP:OUTLIERS` in a
+/// C3D file that `locap clean` wrote; captured or missing otherwise).
+pub(crate) fn read_take(path: &Path) -> Result<(Take, Vec<SampleState>)> {
+    let ext = path.extension().and_then(|e| e.to_str()).unwrap_or_default().to_ascii_lowercase();
+    let (take, filled, outliers) = match ext.as_str() {
+        "trc" => (trc::read_trc_path(path)?, Vec::new(), Vec::new()),
+        "csv" => (csv::read_csv_path(path)?, Vec::new(), Vec::new()),
+        _ => {
+            let file = c3d::read_path(path)?;
+            let take = file.to_take().map_err(|e| e.in_file(path))?;
+            let filled = file.parameters.continued_strings("LOCAP", "FILLED");
+            let outliers = file.parameters.continued_strings("LOCAP", "OUTLIERS");
+            (take, filled, outliers)
+        }
+    };
+    let states = locap_view::sample_states(&take, &filled, &outliers).with_context(|| format!("{}", path.display()))?;
+    Ok((take, states))
+}
