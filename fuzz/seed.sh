@@ -4,7 +4,7 @@
 set -eu
 data=${1:?usage: seed.sh DATA_DIR}
 here=$(cd "$(dirname "$0")" && pwd)
-mkdir -p "$here/corpus/c3d_read" "$here/corpus/c3d_roundtrip" "$here/corpus/bvh_read" "$here/corpus/trc_read"
+mkdir -p "$here/corpus/c3d_read" "$here/corpus/c3d_roundtrip" "$here/corpus/bvh_read" "$here/corpus/trc_read" "$here/corpus/shard_read"
 # C3D files are cut to their first 64 KiB: header and parameter section whole, a few frames
 # of data (the reader reads the complete frames of a truncated file). Whole files of several
 # MiB would slow libFuzzer down far more than they add coverage.
@@ -20,3 +20,13 @@ done
 find "$data" -name '*.trc' | while read -r f; do
     head -n 200 "$f" > "$here/corpus/trc_read/$(basename "$f")"
 done
+# Training shards: one synthesized from a CMU BVH take by locap itself (needs a built locap),
+# cut to its header and a few frames.
+locap="$here/../target/release/locap"
+if [ -x "$locap" ] && [ -d "$data/cmu-bvh" ]; then
+    tmp=$(mktemp -d)
+    bvh=$(find "$data/cmu-bvh" -name '*.bvh' | head -n 1)
+    "$locap" synth --motion "$bvh" -o "$tmp" --format shard --seed 1 >/dev/null
+    for f in "$tmp"/*.shard; do head -c 8192 "$f" > "$here/corpus/shard_read/$(basename "$f")"; done
+    rm -rf "$tmp"
+fi
