@@ -132,7 +132,7 @@ impl Default for LabelConfig {
             method: Method::SoftGraph,
             point_weight: 0.5,
             angle_weight: 1.0e4,
-            geometry_limit: 16.0,
+            geometry_limit: 9.0,
             edges: crate::template::DEFAULT_EDGES,
             max_edge_std_mm: 25.0,
             estimate_neighbours: 6,
