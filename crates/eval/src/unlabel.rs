@@ -8,9 +8,10 @@
 //! - ghost points are added: `ghosts` of them in every frame, each living 0.1-1 s before a new
 //!   one replaces it. The paper draws ghosts at the positions of the raw data's noise markers,
 //!   or around them with N(0, 2 cm) noise; labeled takes have no noise markers left, so the
-//!   body stands in for them: `Near` ghosts stand still where a random marker was when they
-//!   appeared, offset by N(0, 20 mm) per axis (reflections close to the body); `Riding` ghosts
-//!   move with that marker at the same offset (split or doubled markers: the hardest case);
+//!   body stands in for them: `Near` ghosts stand still where a random marker visible in that
+//!   frame was when they appeared, offset by N(0, 20 mm) per axis (reflections close to the
+//!   body; never at an occluded marker, which the cameras cannot see); `Riding` ghosts move
+//!   with that marker at the same offset (split or doubled markers: the hardest case);
 //!   `Random` ghosts stand still anywhere in the take's bounding box grown by 200 mm (stray
 //!   reflections in the volume);
 //! - every frame's points are shuffled, so the column a point arrives in means nothing.
@@ -211,7 +212,14 @@ pub fn unlabel(take: &Take, config: &UnlabelConfig) -> Result<Unlabeled, Unlabel
         while ghosts.len() < config.ghosts {
             let ghost = match config.ghost_mode {
                 GhostMode::Near | GhostMode::Riding => {
-                    let anchor = rng.random_range(0..m);
+                    // Next to a marker the cameras see in this frame: a reflection needs light
+                    // and a line of sight, so none appears where a marker is occluded.
+                    let seen = cloud[..markers_in_frame].len();
+                    let anchor = if seen > 0 {
+                        cloud[rng.random_range(0..seen)].0 as usize
+                    } else {
+                        rng.random_range(0..m)
+                    };
                     let offset_mm = Vec3::from_fn(|_, _| gaussian(&mut rng) * 20.0);
                     let position_mm = take.position_mm(source, labeled[anchor]).unwrap_or(low) + offset_mm;
                     let anchor = (config.ghost_mode == GhostMode::Riding).then_some(anchor);
