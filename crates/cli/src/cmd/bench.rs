@@ -208,9 +208,14 @@ fn label(args: LabelArgs) -> Result<ExitCode> {
         config.methods.len()
     );
     let report = label_bench::run(&takes, &config)?;
-    crate::emit(&report.table())?;
-    if let Some(path) = &args.json {
-        let text = serde_json::to_string_pretty(&report)?;
+    publish(&report.table(), &report, args.json.as_deref())
+}
+
+/// Prints a report's table and, when asked, writes the report as JSON.
+fn publish(table: &str, report: &impl serde::Serialize, json: Option<&std::path::Path>) -> Result<ExitCode> {
+    crate::emit(table)?;
+    if let Some(path) = json {
+        let text = serde_json::to_string_pretty(report)?;
         locap_io::atomic::write_atomically(path, |w| Ok(w.write_all(text.as_bytes())?))?;
         eprintln!("wrote {}", path.display());
     }
@@ -261,11 +266,5 @@ fn fill(args: FillArgs) -> Result<ExitCode> {
     }
     eprintln!("filling hidden gaps in {} takes with {} methods...", takes.len(), Variant::all().len());
     let report = fill_bench::run(&takes, &model, &Variant::all(), args.neighbours, args.seed);
-    crate::emit(&report.table())?;
-    if let Some(path) = &args.json {
-        let text = serde_json::to_string_pretty(&report)?;
-        locap_io::atomic::write_atomically(path, |w| Ok(w.write_all(text.as_bytes())?))?;
-        eprintln!("wrote {}", path.display());
-    }
-    Ok(ExitCode::SUCCESS)
+    publish(&report.table(), &report, args.json.as_deref())
 }
