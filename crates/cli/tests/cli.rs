@@ -240,3 +240,54 @@ fn unlabel_then_label_the_shipped_example() {
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("empty.c3d"));
 }
+
+/// `bench label` on the shipped example: a table with every method and a JSON report.
+#[test]
+fn bench_label_on_the_shipped_example() {
+    let dir = tempfile::tempdir().unwrap();
+    let json = dir.path().join("label.json");
+    let out = locap()
+        .args([
+            "bench",
+            "label",
+            "examples/cmu_01_01_last10s.c3d",
+            "--fps",
+            "120,30",
+            "--ghosts",
+            "0,M",
+            "--drop",
+            "none",
+        ])
+        .arg("--json")
+        .arg(&json)
+        .current_dir(repo())
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let table = String::from_utf8(out.stdout).unwrap();
+    for method in ["ours", "ugm", "cp"] {
+        assert!(table.contains(method), "{table}");
+    }
+    let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let rows = report["rows"].as_array().unwrap();
+    assert_eq!(rows.len(), 2 * 2 * 3);
+    // 1200 frames in 10 s segments: one segment of 42 trajectories per row.
+    assert!(rows.iter().all(|r| r["score"]["trajectories"] == 42));
+    let ours_120 = &rows[0];
+    assert_eq!((ours_120["method"].as_str(), ours_120["frame_rate_hz"].as_f64()), (Some("ours"), Some(120.0)));
+    assert!(ours_120["accuracy"].as_f64().unwrap() > 95.0, "{table}");
+    // Ours labels at least as many samples as UGM and CP in every setting (rows come as
+    // ours, ugm, cp per rate and ghost count).
+    for group in rows.chunks(3) {
+        let accuracy = |r: &serde_json::Value| r["accuracy"].as_f64().unwrap();
+        assert!(accuracy(&group[0]) >= accuracy(&group[1]) && accuracy(&group[0]) >= accuracy(&group[2]), "{table}");
+    }
+
+    let out = locap()
+        .args(["bench", "label", "examples/cmu_01_01_last10s.c3d", "--ghosts", "lots"])
+        .current_dir(repo())
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("lots"));
+}

@@ -215,11 +215,8 @@ pub fn unlabel(take: &Take, config: &UnlabelConfig) -> Result<Unlabeled, Unlabel
                     // Next to a marker the cameras see in this frame: a reflection needs light
                     // and a line of sight, so none appears where a marker is occluded.
                     let seen = cloud[..markers_in_frame].len();
-                    let anchor = if seen > 0 {
-                        cloud[rng.random_range(0..seen)].0 as usize
-                    } else {
-                        rng.random_range(0..m)
-                    };
+                    let anchor =
+                        if seen > 0 { cloud[rng.random_range(0..seen)].0 as usize } else { rng.random_range(0..m) };
                     let offset_mm = Vec3::from_fn(|_, _| gaussian(&mut rng) * 20.0);
                     let position_mm = take.position_mm(source, labeled[anchor]).unwrap_or(low) + offset_mm;
                     let anchor = (config.ghost_mode == GhostMode::Riding).then_some(anchor);
