@@ -210,6 +210,8 @@ pub struct Labeler {
     candidate_cost: Vec<f64>,
     assignment: GatedAssignment,
     greedy: Vec<(f64, u32, u32)>,
+    /// Markers given a second chance this frame ([`Labeler::recover`]).
+    recovering: Vec<u32>,
     point_used: Vec<bool>,
     from_mm: Vec<Vec3>,
     to_mm: Vec<Vec3>,
@@ -269,6 +271,7 @@ impl Labeler {
             candidate_cost: Vec::new(),
             assignment: GatedAssignment::default(),
             greedy: Vec::new(),
+            recovering: Vec::new(),
             point_used: Vec::new(),
             from_mm: Vec::with_capacity(ranked),
             to_mm: Vec::with_capacity(ranked),
@@ -311,17 +314,9 @@ impl Labeler {
             return Err(LabelError::Config(format!("initial label points at point {bad} of {}", points.len())));
         }
         let reference = template.reference_mm();
-        self.from_mm.clear();
-        self.to_mm.clear();
-        let (mut from, mut to) = (Vec::new(), Vec::new());
-        for (m, p) in initial.iter().enumerate() {
-            if let (Some(p), Some(r)) = (p, reference[m]) {
-                from.push(r);
-                to.push(points[*p]);
-            }
-        }
-        let weights = vec![1.0; from.len()];
-        let placement = align_weighted(&from, &to, &weights);
+        let (from, to): (Vec<Vec3>, Vec<Vec3>) =
+            initial.iter().zip(reference).filter_map(|(p, r)| Some(((*r)?, points[(*p)?]))).unzip();
+        let placement = locap_clean::procrustes::align(&from, &to);
         let std = self.config.kalman.measurement_std_mm;
         for m in 0..self.markers {
             self.estimated[m] = false;
@@ -576,10 +571,10 @@ impl Labeler {
         let gate2 = self.config.recover_gate_mm * self.config.recover_gate_mm;
         let mut assignment = std::mem::take(&mut self.assignment);
         assignment.begin(points.len());
-        self.greedy.clear();
+        self.recovering.clear();
         for m in 0..self.markers {
             let (true, Some(estimate)) = (self.estimated[m], self.known_mm[m]) else { continue };
-            self.greedy.push((0.0, m as u32, 0));
+            self.recovering.push(m as u32);
             assignment.push_marker(gate2);
             for (j, p) in points.iter().enumerate() {
                 let d2 = (p - estimate).norm_squared();
@@ -588,10 +583,10 @@ impl Labeler {
                 }
             }
         }
-        if !self.greedy.is_empty() {
+        if !self.recovering.is_empty() {
             for (k, found) in assignment.solve().iter().enumerate() {
                 if let Some(p) = found {
-                    let m = self.greedy[k].1 as usize;
+                    let m = self.recovering[k] as usize;
                     self.labels[m] = Some(*p);
                     self.known_mm[m] = Some(points[*p as usize]);
                     self.estimated[m] = false;
