@@ -233,7 +233,12 @@ pub fn run(takes: &[(String, Take)], config: &LabelBenchConfig) -> Result<LabelB
                     ghosts: ghosts.count(template.marker_count()),
                     ghost_mode: config.ghost_mode,
                     drop: config.drop.clone(),
-                    seed: config.seed ^ ((t as u64) << 32) ^ ((r as u64) << 16) ^ g as u64,
+                    // From the take, rate and ghost count themselves (not their places in the
+                    // lists), so a setting gets the same points whatever else is run with it.
+                    seed: config.seed
+                        ^ ((t as u64) << 40)
+                        ^ (((rate * 1000.0).round() as u64) << 12)
+                        ^ ghosts.count(template.marker_count()) as u64,
                 };
                 let unlabeled = unlabel(take, &unlabel_config)
                     .map_err(|error| LabelBenchError::Unlabel { take: name.clone(), error })?;
