@@ -169,7 +169,8 @@ pub fn read_shard(reader: impl std::io::Read) -> Result<Take, NnError> {
 }
 
 impl TrainingData {
-    /// Every `*.shard` in `dir` (sorted by name), or `dir` itself if it is a shard file.
+    /// Every `*.shard` under `dir`, searched recursively (sorted by path), or `dir` itself if it
+    /// is a shard file.
     ///
     /// # Errors
     /// No shards, unreadable shards, or shards with different marker sets.
@@ -177,15 +178,22 @@ impl TrainingData {
         fn io(p: &Path) -> impl FnOnce(std::io::Error) -> NnError + '_ {
             move |source| NnError::Io { path: p.display().to_string(), source }
         }
-        let mut paths: Vec<PathBuf> = if dir.is_dir() {
-            std::fs::read_dir(dir)
-                .map_err(io(dir))?
-                .filter_map(|e| e.ok().map(|e| e.path()))
-                .filter(|p| p.extension().is_some_and(|e| e == "shard"))
-                .collect()
+        let mut paths: Vec<PathBuf> = Vec::new();
+        if dir.is_dir() {
+            let mut folders = vec![dir.to_path_buf()];
+            while let Some(folder) = folders.pop() {
+                for entry in std::fs::read_dir(&folder).map_err(io(&folder))? {
+                    let path = entry.map_err(io(&folder))?.path();
+                    if path.is_dir() {
+                        folders.push(path);
+                    } else if path.extension().is_some_and(|e| e == "shard") {
+                        paths.push(path);
+                    }
+                }
+            }
         } else {
-            vec![dir.to_path_buf()]
-        };
+            paths.push(dir.to_path_buf());
+        }
         paths.sort();
         if paths.is_empty() {
             return Err(NnError::Data(format!("{}: no .shard files (write them with `locap synth`)", dir.display())));
