@@ -50,6 +50,8 @@ enum Command {
     View(cmd::view::Args),
     /// Draw PNG/SVG charts: gap lengths, occlusion rates, fill error by gap length.
     Plot(cmd::plot::Args),
+    /// Train networks: the learned gap-fill refiner (LocalMoCap section 3.1) on synth shards.
+    Train(cmd::train::Args),
 }
 
 fn main() -> ExitCode {
@@ -67,6 +69,7 @@ fn main() -> ExitCode {
         Command::Hands(args) => cmd::hands::run(args),
         Command::View(args) => cmd::view::run(args),
         Command::Plot(args) => cmd::plot::run(args),
+        Command::Train(args) => cmd::train::run(args),
     };
     match result {
         Ok(code) => code,

@@ -99,6 +99,31 @@ pub struct FillBenchReport {
     pub methods: Vec<MethodResult>,
 }
 
+/// Hides gaps drawn from `model` in `truth`, the `index`-th take of a benchmark run with
+/// `seed` (the same gaps for every method and every tool that scores fills). Returns the holed
+/// take, the hidden samples as `(frame, marker, gap length)` and the number of gaps.
+pub fn hide_gaps(truth: &Take, model: &GapModel, seed: u64, index: usize) -> (Take, Vec<(usize, usize, usize)>, usize) {
+    let mut rng = rand::rngs::StdRng::seed_from_u64(seed.wrapping_add(index as u64 * 0x9E37_79B9));
+    // Unlabeled points (`*N`) are not markers: no method fills them, so none are hidden.
+    let labeled: Vec<bool> = truth.markers().iter().map(|n| !n.is_unlabeled()).collect();
+    let gaps =
+        model.sample(truth.frame_count(), truth.marker_count(), |f, m| labeled[m] && truth.is_valid(f, m), &mut rng);
+    let mut holed = truth.clone();
+    let mut hidden = Vec::new();
+    let mut count = 0;
+    for (marker, marker_gaps) in gaps.iter().enumerate() {
+        for gap in marker_gaps {
+            count += 1;
+            for f in gap.start..gap.end() {
+                // Hiding a sample cannot fail.
+                let _ = holed.set_position_mm(f, marker, None);
+                hidden.push((f, marker, gap.len));
+            }
+        }
+    }
+    (holed, hidden, count)
+}
+
 /// Runs the benchmark on `takes` (name, take) with gaps from `model`.
 pub fn run(
     takes: &[(String, Take)],
@@ -115,27 +140,8 @@ pub fn run(
     let mut seconds = vec![0.0f64; variants.len()];
     let (mut hidden_samples, mut hidden_gaps, mut total_frames) = (0, 0, 0);
     for (index, (_, truth)) in takes.iter().enumerate() {
-        let mut rng = rand::rngs::StdRng::seed_from_u64(seed.wrapping_add(index as u64 * 0x9E37_79B9));
-        // Unlabeled points (`*N`) are not markers: no method fills them, so none are hidden.
-        let labeled: Vec<bool> = truth.markers().iter().map(|n| !n.is_unlabeled()).collect();
-        let gaps = model.sample(
-            truth.frame_count(),
-            truth.marker_count(),
-            |f, m| labeled[m] && truth.is_valid(f, m),
-            &mut rng,
-        );
-        let mut holed = truth.clone();
-        let mut hidden: Vec<(usize, usize, usize)> = Vec::new(); // (frame, marker, gap length)
-        for (marker, marker_gaps) in gaps.iter().enumerate() {
-            for gap in marker_gaps {
-                hidden_gaps += 1;
-                for f in gap.start..gap.end() {
-                    // Hiding a sample cannot fail.
-                    let _ = holed.set_position_mm(f, marker, None);
-                    hidden.push((f, marker, gap.len));
-                }
-            }
-        }
+        let (holed, hidden, gaps) = hide_gaps(truth, model, seed, index);
+        hidden_gaps += gaps;
         hidden_samples += hidden.len();
         total_frames += truth.frame_count();
         for (v, variant) in variants.iter().enumerate() {

@@ -78,6 +78,15 @@ pub enum Chart {
         /// Method name and mean error in mm per bucket (`None` without samples).
         methods: Vec<(String, Vec<Option<f64>>)>,
     },
+    /// Training loss against step, one line per series (training, validation, ...).
+    LossCurve {
+        /// Title.
+        title: String,
+        /// Label of the loss axis (with its unit).
+        y_desc: String,
+        /// Series name and `(step, loss)` points in step order.
+        series: Vec<(String, Vec<(f64, f64)>)>,
+    },
 }
 
 impl Chart {
@@ -162,6 +171,21 @@ impl Chart {
             })
             .collect();
         Ok(Chart::FillError { title: title.to_string(), buckets, methods })
+    }
+
+    /// Loss curve of a training run: `series` are `(name, [(step, loss)])`.
+    ///
+    /// # Errors
+    /// No series has a finite point.
+    pub fn loss_curve(series: Vec<(String, Vec<(f64, f64)>)>, y_desc: &str, title: &str) -> Result<Chart, ViewError> {
+        let series: Vec<_> = series
+            .into_iter()
+            .map(|(name, points)| (name, points.into_iter().filter(|(x, y)| x.is_finite() && y.is_finite()).collect()))
+            .collect();
+        if series.iter().all(|(_, p): &(String, Vec<(f64, f64)>)| p.is_empty()) {
+            return Err(ViewError::Empty("the loss curve has no points".into()));
+        }
+        Ok(Chart::LossCurve { title: title.to_string(), y_desc: y_desc.to_string(), series })
     }
 
     /// Size in pixels that fits the chart's content.
@@ -327,18 +351,57 @@ impl Chart {
                         .draw_series(points.into_iter().map(|p| Circle::new(p, 3, colour.filled())))
                         .map_err(chart_error)?;
                 }
+                draw_legend(&mut chart, SeriesLabelPosition::UpperLeft)?;
+            }
+            Chart::LossCurve { title, y_desc, series } => {
+                let points = || series.iter().flat_map(|(_, p)| p.iter().copied());
+                let x_max = points().map(|p| p.0).fold(1.0, f64::max);
+                let x_min = points().map(|p| p.0).fold(x_max, f64::min).min(x_max - 1.0);
+                let y_max = points().map(|p| p.1).fold(f64::MIN, f64::max);
+                let y_min = points().map(|p| p.1).fold(y_max, f64::min).min(0.0);
+                let pad = ((y_max - y_min) * 0.05).max(1e-9);
+                let mut chart = ChartBuilder::on(root)
+                    .caption(title, ("sans-serif", 20))
+                    .margin(12)
+                    .x_label_area_size(46)
+                    .y_label_area_size(60)
+                    .build_cartesian_2d(x_min..x_max, y_min..y_max + pad)
+                    .map_err(chart_error)?;
                 chart
-                    .configure_series_labels()
-                    .position(SeriesLabelPosition::UpperLeft)
-                    .background_style(WHITE.mix(0.85))
-                    .border_style(BLACK.mix(0.3))
-                    .label_font(("sans-serif", 12))
+                    .configure_mesh()
+                    .x_desc("step")
+                    .y_desc(y_desc.as_str())
+                    .light_line_style(TRANSPARENT)
+                    .label_style(("sans-serif", 12))
                     .draw()
                     .map_err(chart_error)?;
+                for (k, (name, points)) in series.iter().enumerate() {
+                    let colour = PALETTE[k % PALETTE.len()];
+                    chart
+                        .draw_series(LineSeries::new(points.clone(), colour.stroke_width(2)))
+                        .map_err(chart_error)?
+                        .label(name.as_str())
+                        .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], colour.stroke_width(2)));
+                }
+                draw_legend(&mut chart, SeriesLabelPosition::UpperRight)?;
             }
         }
         Ok(())
     }
+}
+
+fn draw_legend<'a, DB: DrawingBackend + 'a, CT: CoordTranslate>(
+    chart: &mut ChartContext<'a, DB, CT>,
+    position: SeriesLabelPosition,
+) -> Result<(), ViewError> {
+    chart
+        .configure_series_labels()
+        .position(position)
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK.mix(0.3))
+        .label_font(("sans-serif", 12))
+        .draw()
+        .map_err(chart_error)
 }
 
 /// `n` categories, one segment each (a segmented `0..n` would add an empty last segment).
@@ -425,5 +488,19 @@ mod tests {
         assert_eq!(methods[0], ("edm".to_string(), vec![Some(1.5), None]));
         let svg = String::from_utf8(chart.render(Format::Svg, (800, 480)).unwrap()).unwrap();
         assert!(svg.contains("\nedm\n"), "legend names the method");
+    }
+
+    #[test]
+    fn loss_curve_draws_every_series() {
+        let train = (0..50).map(|i| (i as f64, 100.0 / (1.0 + i as f64))).collect();
+        let valid = vec![(10.0, 20.0), (20.0, 9.0), (f64::NAN, 1.0)];
+        let chart =
+            Chart::loss_curve(vec![("training".into(), train), ("validation".into(), valid)], "loss, mm", "Loss")
+                .unwrap();
+        let Chart::LossCurve { series, .. } = &chart else { panic!() };
+        assert_eq!(series[1].1.len(), 2, "the NaN point is dropped");
+        let svg = String::from_utf8(chart.render(Format::Svg, (800, 480)).unwrap()).unwrap();
+        assert!(svg.contains("\ntraining\n") && svg.contains("\nvalidation\n") && svg.contains("<polyline"), "{svg}");
+        assert!(Chart::loss_curve(vec![("x".into(), vec![])], "l", "t").unwrap_err().to_string().contains("no points"));
     }
 }

@@ -10,7 +10,7 @@
 //! `LOCAP:OUTLIERS` and `LOCAP:SWAPS`, so any C3D viewer shows what locap changed.
 
 use crate::inputs;
-use anyhow::{Result, bail};
+use anyhow::{Context, Result, bail};
 use clap::{Parser, ValueEnum};
 use locap_clean::outliers::{self, OutlierConfig};
 use locap_clean::swaps::{self, SwapConfig};
@@ -35,6 +35,9 @@ pub struct Args {
     /// Gap-filling method.
     #[arg(long, value_enum, default_value_t = Method::Edm, help_heading = "Filling")]
     method: Method,
+    /// Refiner model for `--method neural` (from `locap train fill`).
+    #[arg(long, value_name = "MODEL", help_heading = "Filling")]
+    model: Option<PathBuf>,
     /// Neighbours used by EDM (the paper's K).
     #[arg(long, default_value_t = 6, value_name = "K", help_heading = "Filling")]
     neighbours: usize,
@@ -65,11 +68,15 @@ pub enum Method {
     Pca,
     /// Rigid-body fill from 3 neighbours.
     Rigid,
+    /// EDM refined by the learned network of `--model` (LocalMoCap section 3.1).
+    Neural,
 }
 
 impl From<Method> for FillMethod {
     fn from(m: Method) -> FillMethod {
         match m {
+            // The refiner starts from EDM's fill.
+            Method::Neural => FillMethod::Edm,
             Method::Edm => FillMethod::Edm,
             Method::Linear => FillMethod::Linear,
             Method::Spline => FillMethod::Spline,
@@ -112,18 +119,30 @@ struct Summary {
 
 /// Runs `locap clean`.
 pub fn run(args: Args) -> Result<ExitCode> {
+    let model = match (args.method, &args.model) {
+        (Method::Neural, None) => bail!("--method neural needs --model MODEL (a model file from `locap train fill`)"),
+        (Method::Neural, Some(path)) => {
+            let bytes = std::fs::read(path).with_context(|| format!("{}", path.display()))?;
+            // Checked once here, so a bad model is a usage error, not a failure of every take.
+            locap_nn::Refiner::from_bytes(&bytes, &Default::default())
+                .with_context(|| format!("{}", path.display()))?;
+            Some(bytes)
+        }
+        (_, Some(_)) => bail!("--model is only used with --method neural"),
+        (_, None) => None,
+    };
     let files = inputs::expand(&args.inputs, &["c3d"])?;
     let targets = inputs::targets(&args.inputs, &files, &args.output)?;
     let (done, failed) = crate::run_takes(&files, "cleaning", |i, input| {
         inputs::create_parent(&targets[i])?;
-        clean_one(input, &targets[i], &args)
+        clean_one(input, &targets[i], &args, model.as_deref())
     });
     let text: String = done.iter().map(|(path, summary)| format_summary(path, summary)).collect();
     crate::emit(&text)?;
     Ok(if failed > 0 { ExitCode::from(1) } else { ExitCode::SUCCESS })
 }
 
-fn clean_one(input: &Path, output: &Path, args: &Args) -> Result<Summary> {
+fn clean_one(input: &Path, output: &Path, args: &Args, model: Option<&[u8]>) -> Result<Summary> {
     if input == output {
         bail!("{}: input and output are the same file; locap never overwrites its input", input.display());
     }
@@ -147,7 +166,11 @@ fn clean_one(input: &Path, output: &Path, args: &Args) -> Result<Summary> {
             Ranking::Nearest => Selection::MeanDistance,
         },
     };
-    let mut filled = locap_clean::fill_gaps(&holed, &fill);
+    let mut filled = match model {
+        // One refiner per job: a burn module is not shared between threads.
+        Some(bytes) => locap_nn::Refiner::from_bytes(bytes, &Default::default())?.refine(&holed)?,
+        None => locap_clean::fill_gaps(&holed, &fill),
+    };
     locap_clean::refill_outliers(&mut filled, &found);
     let mut summary = summarize(&raw, &filled.take, &filled.filled, &removed, &found);
     summary.swaps = swapped.len();
@@ -176,7 +199,13 @@ fn clean_one(input: &Path, output: &Path, args: &Args) -> Result<Summary> {
         })
         .collect();
     file.parameters.set_continued_strings("LOCAP", "SWAPS", &swap_ranges);
-    file.parameters.set_strings("LOCAP", "METHOD", &[format!("{:?} K={}", fill.method, fill.neighbours)]);
+    let method = match (model, &args.model) {
+        (Some(_), Some(path)) => {
+            format!("Neural {} (EDM start)", path.file_name().unwrap_or_default().to_string_lossy())
+        }
+        _ => format!("{:?} K={}", fill.method, fill.neighbours),
+    };
+    file.parameters.set_strings("LOCAP", "METHOD", &[method]);
     c3d::write_path(&file, output)?;
     Ok(summary)
 }

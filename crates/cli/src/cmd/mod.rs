@@ -10,5 +10,6 @@ pub mod layout;
 pub mod plot;
 pub mod stats;
 pub mod synth;
+pub mod train;
 pub mod unlabel;
 pub mod view;

@@ -136,7 +136,7 @@ struct Summary {
     frames_per_second: f64,
 }
 
-fn read_model(sources: &[PathBuf], max_gap: usize) -> Result<GapModel> {
+pub(crate) fn read_model(sources: &[PathBuf], max_gap: usize) -> Result<GapModel> {
     let mut stats = Vec::new();
     let mut models = Vec::new();
     for source in sources {

@@ -1,0 +1,171 @@
+//! `locap train fill`: trains the learned gap-fill refiner (LocalMoCap section 3.1, Eq. 3-4) on
+//! the shards `locap synth` writes, on the CPU (locap-nn, burn's flex backend). One training run
+//! is one job; it uses every core for its batches.
+//!
+//! Writes the model file (`--out`), its loss curve beside it (`OUT.loss.svg`) and checkpoints
+//! (`OUT.checkpoints/`, every `--checkpoint-every` steps); `--resume` continues from them.
+
+use anyhow::{Context, Result, bail};
+use clap::{Parser, Subcommand};
+use locap_nn::TrainConfig;
+use locap_nn::train::{Checkpoints, TrainingData, train};
+use locap_synth::gap_model::GapModel;
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+
+/// Arguments of `locap train`.
+#[derive(Parser, Debug)]
+pub struct Args {
+    #[command(subcommand)]
+    what: What,
+}
+
+#[derive(Subcommand, Debug)]
+enum What {
+    /// The gap-fill refiner: EDM's fill corrected by a graph-convolution + biLSTM network.
+    Fill(FillArgs),
+}
+
+/// Arguments of `locap train fill`.
+#[derive(Parser, Debug)]
+#[command(after_help = "Example:\n  locap synth --motion ../shared/data/cmu-asfamc/01 --format shard -o train/\n  \
+                        locap train fill --data train/ --steps 2000 --out refiner.locapnn")]
+pub struct FillArgs {
+    /// Folder of `.shard` files written by `locap synth` (or one shard).
+    #[arg(long, value_name = "DIR", help_heading = "Data")]
+    data: PathBuf,
+    /// Occlusion statistics for the on-the-fly Eq. 6 corruption: JSON (`locap stats`) or takes
+    /// with real gaps. Default: the built-in statistics.
+    #[arg(long, value_name = "STATS", num_args = 1.., help_heading = "Data")]
+    augment: Vec<PathBuf>,
+    /// Overall occlusion probability of the corruption.
+    #[arg(long, default_value_t = 0.1, value_name = "P", help_heading = "Data")]
+    p_occ: f64,
+    /// Fraction of every take held out for validation.
+    #[arg(long, default_value_t = 0.1, value_name = "F", help_heading = "Data")]
+    validation_fraction: f64,
+    /// Training length in epochs (every frame seen once on average per epoch).
+    #[arg(long, value_name = "N", conflicts_with = "steps", help_heading = "Training")]
+    epochs: Option<usize>,
+    /// Training length in steps (default 2000).
+    #[arg(long, value_name = "N", help_heading = "Training")]
+    steps: Option<usize>,
+    /// Windows per step.
+    #[arg(long, default_value_t = TrainConfig::default().batch, value_name = "N", help_heading = "Training")]
+    batch: usize,
+    /// Peak learning rate (Adam; linear warm-up, cosine decay to a tenth).
+    #[arg(long, default_value_t = TrainConfig::default().learning_rate, value_name = "LR", help_heading = "Training")]
+    lr: f64,
+    /// Seed of every random draw (initial weights, windows, corruption).
+    #[arg(long, default_value_t = 1, value_name = "S", help_heading = "Training")]
+    seed: u64,
+    /// Steps between validations.
+    #[arg(long, default_value_t = TrainConfig::default().validate_every, value_name = "N", help_heading = "Training")]
+    validate_every: usize,
+    /// Steps between checkpoints.
+    #[arg(long, default_value_t = TrainConfig::default().checkpoint_every, value_name = "N", help_heading = "Training")]
+    checkpoint_every: usize,
+    /// Continue from the checkpoints of an earlier run with the same output.
+    #[arg(long, help_heading = "Training")]
+    resume: bool,
+    /// Frames per window.
+    #[arg(long, default_value_t = TrainConfig::default().window, value_name = "FRAMES", help_heading = "Network")]
+    window: usize,
+    /// Graph-convolution features per marker.
+    #[arg(long, default_value_t = TrainConfig::default().channels, value_name = "N", help_heading = "Network")]
+    channels: usize,
+    /// LSTM hidden size per direction.
+    #[arg(long, default_value_t = TrainConfig::default().hidden, value_name = "N", help_heading = "Network")]
+    hidden: usize,
+    /// The model file to write.
+    #[arg(long, default_value = "refiner.locapnn", value_name = "MODEL", help_heading = "Output")]
+    out: PathBuf,
+}
+
+/// Runs `locap train`.
+pub fn run(args: Args) -> Result<ExitCode> {
+    match args.what {
+        What::Fill(a) => fill(a),
+    }
+}
+
+fn with_suffix(path: &Path, suffix: &str) -> PathBuf {
+    let mut name = path.file_name().map(|n| n.to_os_string()).unwrap_or_default();
+    name.push(suffix);
+    path.with_file_name(name)
+}
+
+fn fill(args: FillArgs) -> Result<ExitCode> {
+    if args.out.is_dir() {
+        bail!("--out {} is a folder; give the model file to write", args.out.display());
+    }
+    let data = TrainingData::from_path(&args.data)?;
+    let gap_model =
+        if args.augment.is_empty() { GapModel::builtin() } else { crate::cmd::synth::read_model(&args.augment, 999)? };
+    let defaults = TrainConfig::default();
+    let mut config = TrainConfig {
+        batch: args.batch,
+        learning_rate: args.lr,
+        seed: args.seed,
+        validate_every: args.validate_every,
+        checkpoint_every: args.checkpoint_every,
+        validation_fraction: args.validation_fraction,
+        window: args.window,
+        channels: args.channels,
+        hidden: args.hidden,
+        augment: locap_synth::augment::AugmentConfig { missing_fraction: Some(args.p_occ), ..defaults.augment.clone() },
+        ..defaults
+    };
+    config.steps = match (args.epochs, args.steps) {
+        (Some(e), _) => e * data.steps_per_epoch(&config),
+        (None, Some(s)) => s,
+        (None, None) => config.steps,
+    };
+    eprintln!(
+        "training on {} takes, {} frames, {} markers: {} steps of {} x {} frames",
+        data.takes.len(),
+        data.frames(),
+        data.markers.len(),
+        config.steps,
+        config.batch,
+        config.window
+    );
+    let bar = indicatif::ProgressBar::new(config.steps as u64);
+    bar.set_style(
+        indicatif::ProgressStyle::with_template("{msg} [{bar:30}] {pos}/{len} ({eta})")
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar())
+            .progress_chars("=> "),
+    );
+    let mut validation = String::new();
+    let checkpoints = Checkpoints { dir: with_suffix(&args.out, ".checkpoints"), resume: args.resume };
+    let (refiner, report) = train(&data, &config, &gap_model, Some(&checkpoints), &mut |p| {
+        if let Some(v) = p.validation_mm {
+            validation = format!(", validation {v:.2} mm");
+        }
+        bar.set_position(p.step as u64);
+        bar.set_message(format!("loss {:.2} mm{validation}", p.loss_mm));
+    })?;
+    bar.finish_and_clear();
+    let bytes = refiner.to_bytes()?;
+    crate::inputs::create_parent(&args.out)?;
+    locap_io::atomic::write_atomically(&args.out, |w| Ok(w.write_all(&bytes)?))
+        .with_context(|| format!("{}", args.out.display()))?;
+    let curve_path = with_suffix(&args.out, ".loss.svg");
+    let curve = report.loss_curve("locap train fill")?.render(locap_view::plot::Format::Svg, (800, 480))?;
+    locap_io::atomic::write_atomically(&curve_path, |w| Ok(w.write_all(&curve)?))
+        .with_context(|| format!("{}", curve_path.display()))?;
+    let last = |v: &[(usize, f64)]| v.last().map(|x| format!("{:.2} mm", x.1)).unwrap_or_else(|| "-".into());
+    crate::emit(&format!(
+        "{}: {} weights ({:.1} MB), {} steps ({:.3} s/step); training loss {}, validation {} (EDM alone {}); loss curve {}\n",
+        args.out.display(),
+        report.parameters,
+        bytes.len() as f64 / 1e6,
+        report.steps,
+        report.step_seconds / report.steps_this_run.max(1) as f64,
+        last(&report.training_mm),
+        last(&report.validation_mm),
+        report.edm_validation_mm.map(|v| format!("{v:.2} mm")).unwrap_or_else(|| "-".into()),
+        curve_path.display()
+    ))?;
+    Ok(ExitCode::SUCCESS)
+}

@@ -1,0 +1,64 @@
+//! locap's learned gap-fill refiner (LocalMoCap section 3.1, Eq. 3-4), trained and run on the
+//! CPU with [burn](https://burn.dev)'s `flex` backend, in the same binary as the rest of locap.
+//!
+//! EDM (locality gap fill, `locap_clean::edm`) gives a first estimate of every occluded sample
+//! from the distances to its most stable neighbours. Distances do not capture every motion
+//! pattern, so the paper refines EDM's estimate with a network that sees the markers in the
+//! waist's local frame (no global position or heading to learn), their visibility, their
+//! stable-neighbour graph (per-edge filters, Eq. 4) and 64 frames of context (biLSTM), and
+//! predicts a residual offset for the occluded samples only, trained with Eq. 3.
+//!
+//! * [`model`]: the network (graph convolution, biLSTM, offset head).
+//! * [`features`]: a take to network inputs (EDM fill, local frame, normalisation) and back.
+//! * [`refiner`]: the versioned model file and inference over overlapping windows.
+//! * [`train`]: shard data loading with on-the-fly Eq. 6 augmentation, Adam, learning-rate
+//!   schedule, validation, checkpoints and resume, loss curve.
+
+pub mod features;
+pub mod model;
+pub mod refiner;
+pub mod train;
+
+pub use burn;
+pub use refiner::{ModelMeta, Refiner};
+pub use train::{TrainConfig, TrainReport};
+
+/// Errors of the refiner.
+#[derive(Debug, thiserror::Error)]
+pub enum NnError {
+    /// The model's markers are not all in the take.
+    #[error(
+        "the model was trained on another marker set: {missing} of its {total} markers are not in the take (first: {first})"
+    )]
+    MarkerSet {
+        /// How many model markers the take lacks.
+        missing: usize,
+        /// Markers of the model.
+        total: usize,
+        /// The first few missing labels.
+        first: String,
+    },
+    /// Not a model file, or a damaged one.
+    #[error("not a usable locap refiner model: {0}")]
+    BadModel(String),
+    /// The local frame cannot be built on the take.
+    #[error(transparent)]
+    LocalFrame(#[from] locap_clean::local_frame::LocalFrameError),
+    /// Reading training data failed.
+    #[error(transparent)]
+    Shard(#[from] locap_synth::shard::ShardError),
+    /// Augmentation settings out of range.
+    #[error(transparent)]
+    Augment(#[from] locap_synth::augment::AugmentError),
+    /// A file could not be read or written.
+    #[error("{path}: {source}")]
+    Io {
+        /// The file.
+        path: String,
+        /// What failed.
+        source: std::io::Error,
+    },
+    /// Training data or settings that cannot be used.
+    #[error("{0}")]
+    Data(String),
+}
