@@ -48,9 +48,11 @@ fn train_fill_then_clean_neural() {
         .unwrap();
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let model = dir.path().join("tiny.locapnn");
+    // Synthetic shards and a real labeled take train together.
     let out = locap()
         .args(["train", "fill", "--data"])
         .arg(&shards)
+        .arg(data.join("cmu-c3d/02_01.c3d"))
         .args(["--steps", "4", "--batch", "4", "--window", "32", "--channels", "4", "--hidden", "16"])
         .args(["--validate-every", "2", "--out"])
         .arg(&model)
@@ -61,6 +63,33 @@ fn train_fill_then_clean_neural() {
     assert!(text.contains("4 steps") && text.contains("EDM alone"), "{text}");
     assert!(dir.path().join("tiny.locapnn.loss.svg").is_file());
     assert!(dir.path().join("tiny.locapnn.checkpoints/checkpoint.locapnn").is_file());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("training on 2 takes") && err.contains("waist frame"), "{err}");
+
+    // The bench scores the model on the same hidden gaps as the other methods, and says which
+    // takes it could not fill.
+    let report = dir.path().join("bench.json");
+    let out = locap()
+        .args(["bench", "fill"])
+        .arg(data.join("cmu-c3d/85_02.c3d"))
+        .arg(data.join("numediart-c3d/03_rolling.c3d"))
+        .arg("--model")
+        .arg(&model)
+        .arg("--json")
+        .arg(&report)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let json: serde_json::Value = serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();
+    let methods = json["methods"].as_array().unwrap();
+    let row = |name: &str| methods.iter().find(|m| m["method"] == name).unwrap_or_else(|| panic!("{name}: {json}"));
+    let (edm, neural) = (row("edm"), row("neural"));
+    let hidden = json["hidden_samples"].as_u64().unwrap();
+    assert_eq!(edm["scored_samples"].as_u64(), Some(hidden));
+    let scored = neural["scored_samples"].as_u64().unwrap();
+    assert!(scored > 0 && scored + neural["unfilled_samples"].as_u64().unwrap() == hidden, "{neural}");
+    let failures = neural["failures"].as_array().unwrap();
+    assert!(failures.len() == 1 && failures[0].as_str().unwrap().contains("another marker set"), "{neural}");
 
     let raw = repo().join("examples/cmu_01_01_last10s.c3d");
     let cleaned = dir.path().join("clean.c3d");

@@ -6,6 +6,9 @@
 //! truth. Reported per method: OMPE (mean, median and 95th percentile position error in mm,
 //! hidden samples only), the error by gap length, how many hidden samples the method left
 //! unfilled, and throughput (take frames filled per second of wall time on one core).
+//!
+//! The methods of `locap_clean` are [`Variant`]s; other fillers (the learned refiner, which
+//! this crate does not depend on) come in as [`Method`]s and are scored on the same gaps.
 
 use crate::gap_model::GapModel;
 use locap_clean::{FillConfig, FillMethod, fill_gaps, neighbours::Selection};
@@ -39,6 +42,26 @@ impl Variant {
             FillMethod::ALL.iter().map(|m| Variant { method: *m, selection: Selection::Variance }).collect();
         v.insert(1, Variant { method: FillMethod::Edm, selection: Selection::MeanDistance });
         v
+    }
+}
+
+/// Fills every gap of a take, or says why it cannot (its hidden samples then count as
+/// unfilled).
+pub type FillFn<'a> = Box<dyn Fn(&Take) -> Result<Take, String> + 'a>;
+
+/// A filler under test.
+pub struct Method<'a> {
+    /// Name in the report.
+    pub name: String,
+    /// The filler.
+    pub fill: FillFn<'a>,
+}
+
+impl Variant {
+    /// This variant as a [`Method`] with `neighbours` neighbours.
+    pub fn method(self, neighbours: usize) -> Method<'static> {
+        let config = FillConfig { method: self.method, neighbours, selection: self.selection };
+        Method { name: self.name(), fill: Box::new(move |take| Ok(fill_gaps(take, &config).take)) }
     }
 }
 
@@ -82,6 +105,9 @@ pub struct MethodResult {
     pub seconds: f64,
     /// Take frames filled per second.
     pub frames_per_second: f64,
+    /// Why the method could not fill some takes (`take: reason`).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub failures: Vec<String>,
 }
 
 /// The whole benchmark.
@@ -132,6 +158,13 @@ pub fn run(
     neighbours: usize,
     seed: u64,
 ) -> FillBenchReport {
+    let methods: Vec<Method> = variants.iter().map(|v| v.method(neighbours)).collect();
+    run_methods(takes, model, &methods, seed)
+}
+
+/// Runs the benchmark on `takes` (name, take) with gaps from `model` for any fillers.
+pub fn run_methods(takes: &[(String, Take)], model: &GapModel, variants: &[Method], seed: u64) -> FillBenchReport {
+    let mut failures: Vec<Vec<String>> = vec![Vec::new(); variants.len()];
     let mut errors: Vec<Vec<(f64, usize)>> = vec![Vec::new(); variants.len()];
     // Per variant, the error of every hidden sample in one global order (`None` = unfilled),
     // to score all methods on the samples every one of them filled.
@@ -139,18 +172,20 @@ pub fn run(
     let mut unfilled = vec![0usize; variants.len()];
     let mut seconds = vec![0.0f64; variants.len()];
     let (mut hidden_samples, mut hidden_gaps, mut total_frames) = (0, 0, 0);
-    for (index, (_, truth)) in takes.iter().enumerate() {
+    for (index, (name, truth)) in takes.iter().enumerate() {
         let (holed, hidden, gaps) = hide_gaps(truth, model, seed, index);
         hidden_gaps += gaps;
         hidden_samples += hidden.len();
         total_frames += truth.frame_count();
         for (v, variant) in variants.iter().enumerate() {
-            let config = FillConfig { method: variant.method, neighbours, selection: variant.selection };
             let start = Instant::now();
-            let filled = fill_gaps(&holed, &config);
+            let filled = (variant.fill)(&holed).unwrap_or_else(|why| {
+                failures[v].push(format!("{name}: {why}"));
+                holed.clone()
+            });
             seconds[v] += start.elapsed().as_secs_f64();
             for &(f, m, len) in &hidden {
-                match (filled.take.position_mm(f, m), truth.position_mm(f, m)) {
+                match (filled.position_mm(f, m), truth.position_mm(f, m)) {
                     (Some(a), Some(b)) => {
                         errors[v].push(((a - b).norm(), len));
                         per_sample[v].push(Some((a - b).norm()));
@@ -191,7 +226,8 @@ pub fn run(
                 })
                 .collect();
             MethodResult {
-                method: variant.name(),
+                method: variant.name.clone(),
+                failures: failures[v].clone(),
                 scored_samples: e.len(),
                 unfilled_samples: unfilled[v],
                 ompe_mean_mm: if e.is_empty() { f64::NAN } else { sorted.iter().sum::<f64>() / e.len() as f64 },
@@ -228,7 +264,7 @@ impl FillBenchReport {
         );
         let _ = write!(
             s,
-            "{:<14} {:>9} {:>9} {:>9} {:>9} {:>9}",
+            "{:<16} {:>9} {:>9} {:>9} {:>9} {:>9}",
             "method", "OMPE mm", "common", "median", "p95", "unfilled"
         );
         for (lo, hi) in BUCKETS {
@@ -239,7 +275,7 @@ impl FillBenchReport {
         for m in &self.methods {
             let _ = write!(
                 s,
-                "{:<14} {:>9.2} {:>9.2} {:>9.2} {:>9.2} {:>9}",
+                "{:<16} {:>9.2} {:>9.2} {:>9.2} {:>9.2} {:>9}",
                 m.method, m.ompe_mean_mm, m.ompe_common_mm, m.ompe_median_mm, m.ompe_p95_mm, m.unfilled_samples
             );
             for b in &m.by_gap_length {
@@ -253,6 +289,11 @@ impl FillBenchReport {
                 }
             }
             let _ = writeln!(s, " {:>12.0}", m.frames_per_second);
+        }
+        for m in &self.methods {
+            for f in &m.failures {
+                let _ = writeln!(s, "{} could not fill {f}", m.method);
+            }
         }
         s
     }

@@ -17,22 +17,24 @@
 //!
 //! # Inference
 //!
-//! EDM fills the take, the model markers go to the waist frame, and the network runs over
+//! EDM (or the model's initial fill) fills the take, the model markers go to the waist frame, and the network runs over
 //! windows of `window` frames that overlap by half. Each frame's offset is the average of the
 //! windows covering it, weighted by a triangle that peaks mid-window (a window's first and last
 //! frames see context on one side only). The last window ends at the take's last frame, so no
 //! frame is padded; a take shorter than a window is one window of its own length (the LSTM
-//! runs on any length). Offsets are applied to the samples EDM filled, never to observed ones.
+//! runs on any length). Offsets are applied to the samples EDM filled, never to observed ones,
+//! faded in from each gap's captured borders over `taper_frames` frames
+//! ([`crate::features::offset_taper`]).
 
 use crate::NnError;
-use crate::features::{LocalTake, Normalisation, input_values, marker_order, prepare};
+use crate::features::{LocalTake, Normalisation, input_values, marker_order, offset_taper, prepare};
 use crate::model::{Architecture, RefinerNet, gather_indices};
 use burn::module::Module;
 use burn::prelude::*;
 use burn::store::ModuleRecord;
 use burn::tensor::Bytes;
-use locap_clean::Filled;
 use locap_clean::local_frame::FrameDefinition;
+use locap_clean::{FillMethod, Filled};
 use locap_core::{Take, Vec3};
 use serde::{Deserialize, Serialize};
 
@@ -58,11 +60,22 @@ pub struct ModelMeta {
     pub window: usize,
     /// `K` of the EDM fill the refiner starts from.
     pub edm_neighbours: usize,
+    /// The fill the refiner corrects: EDM (the paper), or linear for the "w/o EDM" ablation.
+    #[serde(default = "edm_init")]
+    pub init: FillMethod,
+    /// Offsets fade in over this many frames from a gap's captured borders
+    /// ([`crate::features::offset_taper`]; 0: applied in full).
+    #[serde(default)]
+    pub taper_frames: usize,
     /// Network size.
     pub architecture: Architecture,
     /// How the model was trained (free-form summary written by training).
     #[serde(default)]
     pub training: serde_json::Value,
+}
+
+fn edm_init() -> FillMethod {
+    FillMethod::Edm
 }
 
 impl ModelMeta {
@@ -85,6 +98,9 @@ impl ModelMeta {
             || n.mean_mm.iter().flatten().any(|v| !v.is_finite())
         {
             return bad("normalisation statistics do not match the markers or are not finite and positive".into());
+        }
+        if !matches!(self.init, FillMethod::Edm | FillMethod::Linear) {
+            return bad(format!("initial fill {} (edm or linear)", self.init.name()));
         }
         if self.window < 2 || a.channels == 0 || a.hidden == 0 {
             return bad(format!("window {} / channels {} / hidden {}", self.window, a.channels, a.hidden));
@@ -173,8 +189,9 @@ impl Refiner {
     /// The take lacks model markers, or its local frame is never defined.
     pub fn refine(&self, take: &Take) -> Result<Filled, NnError> {
         let order = marker_order(take, &self.meta.markers)?;
-        let prepared = prepare(take, &order, &self.meta.frame, self.meta.edm_neighbours)?;
+        let prepared = prepare(take, &order, &self.meta.frame, self.meta.init, self.meta.edm_neighbours)?;
         let offsets = self.offsets_mm(&prepared.local, &prepared.visible);
+        let taper = offset_taper(&prepared.visible, order.len(), self.meta.taper_frames);
         let mut filled = prepared.filled;
         let (m, mt) = (order.len(), take.marker_count());
         for f in 0..take.frame_count() {
@@ -184,7 +201,7 @@ impl Refiner {
                     continue;
                 }
                 let Some(local) = prepared.local.local_mm[f * m + k] else { continue };
-                let world = frame.to_world(&(local + offsets[f * m + k]));
+                let world = frame.to_world(&(local + offsets[f * m + k] * taper[f * m + k] as f64));
                 if world.iter().all(|v| v.is_finite()) {
                     // A finite position on an existing sample cannot fail.
                     let _ = filled.take.set_position_mm(f, t, Some(world));
@@ -201,6 +218,7 @@ impl Refiner {
         let starts = window_starts(t, w);
         let gather = gather_indices(&self.meta.neighbours, &self.device);
         let norm = &self.meta.normalisation;
+        let centres = norm.centres(local, Some(visible));
         let mut acc = vec![Vec3::zeros(); t * m];
         let mut weight = vec![0.0f64; t];
         const BATCH: usize = 32;
@@ -208,7 +226,7 @@ impl Refiner {
         for group in starts.chunks(BATCH) {
             values.clear();
             for &s in group {
-                input_values(local, visible, norm, s..s + w, &mut values);
+                input_values(local, visible, norm, &centres, s..s + w, &mut values);
             }
             let x = Tensor::<4>::from_data(TensorData::new(values.clone(), [group.len(), w, m, 4]), &self.device);
             let out = self.net.forward(x, gather.clone()).into_data().try_to_vec::<f32>().unwrap_or_default();

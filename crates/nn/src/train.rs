@@ -18,7 +18,7 @@
 //!   a tenth.
 
 use crate::NnError;
-use crate::features::{LocalTake, Normalisation, input_values, marker_order, neighbour_graph, prepare};
+use crate::features::{LocalTake, Normalisation, input_values, marker_order, neighbour_graph, offset_taper, prepare};
 use crate::model::{Architecture, RefinerNet, gather_indices};
 use crate::refiner::{ModelMeta, Refiner};
 use burn::grad_clipping::GradientClippingConfig;
@@ -26,6 +26,7 @@ use burn::module::Module;
 use burn::optim::{AdamConfig, GradientsParams};
 use burn::prelude::*;
 use burn::tensor::Bytes;
+use locap_clean::FillMethod;
 use locap_clean::local_frame::FrameDefinition;
 use locap_core::{MarkerName, Take, Vec3};
 use locap_synth::augment::{AugmentConfig, augment};
@@ -75,6 +76,20 @@ pub struct TrainConfig {
     pub edm_neighbours: usize,
     /// Local frame.
     pub frame: FrameDefinition,
+    /// Centre every marker's input on its own take's mean (see [`crate::features`]).
+    #[serde(default)]
+    pub per_take_centre: bool,
+    /// The fill the refiner corrects: EDM, or linear for the "w/o EDM" ablation.
+    #[serde(default = "edm_init")]
+    pub init: FillMethod,
+    /// Offsets fade in over this many frames from a gap's borders (see
+    /// [`crate::features::offset_taper`]); the loss sees the faded offsets, as inference does.
+    #[serde(default)]
+    pub taper_frames: usize,
+}
+
+fn edm_init() -> FillMethod {
+    FillMethod::Edm
 }
 
 impl Default for TrainConfig {
@@ -99,6 +114,9 @@ impl Default for TrainConfig {
             neighbours: 6,
             edm_neighbours: 6,
             frame: FrameDefinition::cmu_waist(),
+            per_take_centre: true,
+            init: FillMethod::Edm,
+            taper_frames: 20,
         }
     }
 }
@@ -114,6 +132,9 @@ impl TrainConfig {
         }
         if !(self.learning_rate.is_finite() && self.learning_rate > 0.0) {
             return bad(format!("learning rate {} must be positive", self.learning_rate));
+        }
+        if !matches!(self.init, FillMethod::Edm | FillMethod::Linear) {
+            return bad(format!("initial fill {} must be edm or linear", self.init.name()));
         }
         if !(0.0..0.9).contains(&self.validation_fraction) {
             return bad(format!("validation fraction {} must be in 0..0.9", self.validation_fraction));
@@ -170,60 +191,95 @@ pub fn read_shard(reader: impl std::io::Read) -> Result<Take, NnError> {
 
 impl TrainingData {
     /// Every `*.shard` under `dir`, searched recursively (sorted by path), or `dir` itself if it
-    /// is a shard file.
+    /// is a shard file (see [`TrainingData::from_paths`]).
     ///
     /// # Errors
-    /// No shards, unreadable shards, or shards with different marker sets.
+    /// As [`TrainingData::from_paths`].
     pub fn from_path(dir: &Path) -> Result<TrainingData, NnError> {
+        TrainingData::from_paths(&[dir.to_path_buf()])
+    }
+
+    /// Training takes from `paths`: shard files (`locap synth`: clean synthetic markers) and
+    /// labeled C3D takes (real markers; their own gaps are simply not scored), given as files or
+    /// folders searched recursively for `*.shard`, or for `*.c3d` when a folder holds no shard
+    /// (`locap synth` writes C3D copies beside its shards). Shards come first, each group
+    /// sorted by path; the markers are the first take's, and takes that carry more markers
+    /// (a split label, unlabeled `*N` points) give up the extra ones.
+    ///
+    /// # Errors
+    /// No takes, unreadable files, or a take lacking some of the first take's markers.
+    pub fn from_paths(paths: &[PathBuf]) -> Result<TrainingData, NnError> {
         fn io(p: &Path) -> impl FnOnce(std::io::Error) -> NnError + '_ {
             move |source| NnError::Io { path: p.display().to_string(), source }
         }
-        let mut paths: Vec<PathBuf> = Vec::new();
-        if dir.is_dir() {
-            let mut folders = vec![dir.to_path_buf()];
+        let is = |p: &Path, ext: &str| p.extension().is_some_and(|e| e.eq_ignore_ascii_case(ext));
+        let (mut shards, mut c3ds): (Vec<PathBuf>, Vec<PathBuf>) = (Vec::new(), Vec::new());
+        for path in paths {
+            if !path.is_dir() {
+                if is(path, "c3d") {
+                    c3ds.push(path.clone())
+                } else {
+                    shards.push(path.clone())
+                }
+                continue;
+            }
+            let (mut found_shards, mut found_c3ds) = (Vec::new(), Vec::new());
+            let mut folders = vec![path.clone()];
             while let Some(folder) = folders.pop() {
                 for entry in std::fs::read_dir(&folder).map_err(io(&folder))? {
                     let path = entry.map_err(io(&folder))?.path();
                     if path.is_dir() {
                         folders.push(path);
-                    } else if path.extension().is_some_and(|e| e == "shard") {
-                        paths.push(path);
+                    } else if is(&path, "shard") {
+                        found_shards.push(path);
+                    } else if is(&path, "c3d") {
+                        found_c3ds.push(path);
                     }
                 }
             }
-        } else {
-            paths.push(dir.to_path_buf());
+            // `locap synth` writes STEM.c3d and STEM.clean.c3d beside STEM.shard: a folder with
+            // shards gives its shards only, so no take is read twice.
+            if found_shards.is_empty() {
+                c3ds.extend(found_c3ds);
+            } else {
+                shards.extend(found_shards);
+            }
         }
-        paths.sort();
-        if paths.is_empty() {
-            return Err(NnError::Data(format!("{}: no .shard files (write them with `locap synth`)", dir.display())));
+        shards.sort();
+        c3ds.sort();
+        if shards.is_empty() && c3ds.is_empty() {
+            let shown: Vec<String> = paths.iter().map(|p| p.display().to_string()).collect();
+            return Err(NnError::Data(format!(
+                "{}: no .shard files (write them with `locap synth`) and no .c3d takes",
+                shown.join(", ")
+            )));
         }
-        let takes = paths
-            .par_iter()
-            .map(|p| {
+        let read = |p: &PathBuf| -> Result<Take, NnError> {
+            let at = |e: String| NnError::Data(format!("{}: {e}", p.display()));
+            if is(p, "c3d") {
+                let file = locap_io::c3d::read_path(p).map_err(|e| at(e.to_string()))?;
+                file.to_take().map_err(|e| at(e.to_string()))
+            } else {
                 let file = std::fs::File::open(p).map_err(io(p))?;
-                read_shard(std::io::BufReader::new(file)).map_err(|e| NnError::Data(format!("{}: {e}", p.display())))
-            })
-            .collect::<Result<Vec<Take>, NnError>>()?;
-        TrainingData::new(takes, paths.iter().map(|p| p.display().to_string()).collect())
+                read_shard(std::io::BufReader::new(file)).map_err(|e| at(e.to_string()))
+            }
+        };
+        let all: Vec<PathBuf> = shards.into_iter().chain(c3ds).collect();
+        let takes = all.par_iter().map(read).collect::<Result<Vec<Take>, NnError>>()?;
+        TrainingData::new(takes, all.iter().map(|p| p.display().to_string()).collect())
     }
 
-    /// Training data from clean takes; markers are put in the first take's order.
+    /// Training data from takes; the markers are the first take's labelled ones, in its order,
+    /// and every take is cut to them.
     ///
     /// # Errors
-    /// No takes, or takes with different marker sets.
+    /// No takes, or a take lacking some of them.
     pub fn new(takes: Vec<Take>, names: Vec<String>) -> Result<TrainingData, NnError> {
         let first = takes.first().ok_or_else(|| NnError::Data("no training takes".into()))?;
-        let markers: Vec<String> = first.markers().iter().map(|n| n.label.clone()).collect();
+        let markers: Vec<String> =
+            first.markers().iter().filter(|n| !n.is_unlabeled()).map(|n| n.label.clone()).collect();
         let mut ordered = Vec::with_capacity(takes.len());
         for (take, name) in takes.iter().zip(&names) {
-            if take.marker_count() != markers.len() {
-                return Err(NnError::Data(format!(
-                    "{name}: {} markers, the first take has {}",
-                    take.marker_count(),
-                    markers.len()
-                )));
-            }
             let order = marker_order(take, &markers).map_err(|e| NnError::Data(format!("{name}: {e}")))?;
             let samples: Vec<Option<Vec3>> =
                 (0..take.frame_count()).flat_map(|f| order.iter().map(move |&k| take.position_mm(f, k))).collect();
@@ -253,6 +309,7 @@ struct Example {
     edm_mm: Vec<f32>,
     truth_mm: Vec<f32>,
     mask: Vec<f32>,
+    taper: Vec<f32>,
 }
 
 /// Everything an example needs besides the rng.
@@ -264,6 +321,8 @@ struct Sampler<'a> {
     /// `(take, first frame, frames)` ranges examples are drawn from.
     ranges: Vec<(usize, usize, usize)>,
     takes: &'a [Take],
+    /// Per take, what its inputs are centred on ([`Normalisation::centres`]).
+    centres: &'a [Vec<[f64; 3]>],
 }
 
 impl Sampler<'_> {
@@ -286,16 +345,19 @@ impl Sampler<'_> {
         let start = first + pick;
         let clean = self.takes[take].slice_frames(start..start + seg_len);
         let corrupted = augment(&clean, self.gap_model, &self.config.augment, rng).ok()?;
-        let prepared = prepare(&corrupted.take, &self.identity, &self.config.frame, self.config.edm_neighbours).ok()?;
+        let prepared =
+            prepare(&corrupted.take, &self.identity, &self.config.frame, self.config.init, self.config.edm_neighbours)
+                .ok()?;
         let truth = LocalTake::new(&clean, &self.identity, prepared.local.frames_local.clone());
         let w = self.config.window.min(seg_len);
         let c = (seg_len - w) / 2;
         let m = self.identity.len();
         let mut input = Vec::with_capacity(w * m * 4);
-        input_values(&prepared.local, &prepared.visible, self.norm, c..c + w, &mut input);
+        input_values(&prepared.local, &prepared.visible, self.norm, &self.centres[take], c..c + w, &mut input);
         let mut edm_mm = Vec::with_capacity(w * m * 3);
         let mut truth_mm = Vec::with_capacity(w * m * 3);
         let mut mask = Vec::with_capacity(w * m);
+        let taper = offset_taper(&prepared.visible, m, self.config.taper_frames)[c * m..(c + w) * m].to_vec();
         for f in c..c + w {
             for k in 0..m {
                 let i = f * m + k;
@@ -315,7 +377,7 @@ impl Sampler<'_> {
                 }
             }
         }
-        Some(Example { input, edm_mm, truth_mm, mask })
+        Some(Example { input, edm_mm, truth_mm, mask, taper })
     }
 
     fn segment_len(&self, r: &(usize, usize, usize)) -> usize {
@@ -338,6 +400,7 @@ struct Batch {
     edm: Tensor<4>,
     truth: Tensor<4>,
     mask: Tensor<4>,
+    taper: Tensor<4>,
     samples: f32,
 }
 
@@ -354,13 +417,14 @@ impl Batch {
             edm: t(cat(|e| &e.edm_mm), 3),
             truth: t(cat(|e| &e.truth_mm), 3),
             mask: t(mask, 1),
+            taper: t(cat(|e| &e.taper), 1),
             samples,
         }
     }
 
     /// Eq. 3: mean over the occluded samples of `|truth - (EDM + offset)|`, mm.
     fn loss(&self, net: &RefinerNet, gather: Tensor<1, Int>, std_mm: Tensor<4>) -> Tensor<1> {
-        let offset = net.forward(self.x.clone(), gather) * std_mm;
+        let offset = net.forward(self.x.clone(), gather) * std_mm * self.taper.clone();
         let diff = self.truth.clone() - self.edm.clone() - offset;
         let dist = (diff.powf_scalar(2.0).sum_dim(3) + 1e-2).sqrt();
         (dist * self.mask.clone()).sum() / self.samples.max(1.0)
@@ -524,7 +588,8 @@ pub fn train(
         .par_iter()
         .map(|take| LocalTake::of_take(take, &identity, &config.frame))
         .collect::<Result<Vec<_>, _>>()?;
-    let norm = Normalisation::of_local_takes(&locals, m);
+    let norm = Normalisation::of_local_takes(&locals, m, config.per_take_centre);
+    let centres: Vec<Vec<[f64; 3]>> = locals.iter().map(|l| norm.centres(l, None)).collect();
     let longest = data.takes.iter().max_by_key(|t| t.frame_count()).ok_or_else(|| NnError::Data("no takes".into()))?;
     let graph = neighbour_graph(longest, &identity, config.neighbours);
     let architecture =
@@ -536,6 +601,8 @@ pub fn train(
         normalisation: norm.clone(),
         window: config.window,
         edm_neighbours: config.edm_neighbours,
+        init: config.init,
+        taper_frames: config.taper_frames,
         architecture,
         training: serde_json::Value::Null,
     };
@@ -580,6 +647,7 @@ pub fn train(
         identity: identity.clone(),
         ranges: train_ranges,
         takes: &data.takes,
+        centres: &centres,
     };
     let valid_sampler = Sampler {
         config,
@@ -588,6 +656,7 @@ pub fn train(
         identity: identity.clone(),
         ranges: valid_ranges,
         takes: &data.takes,
+        centres: &centres,
     };
     let valid_examples: Vec<Example> =
         (0..if config.validation_fraction > 0.0 { config.validation_windows } else { 0 })

@@ -193,6 +193,61 @@ fn a_tiny_refiner_learns_from_a_synthetic_shard() {
 }
 
 #[test]
+fn training_data_mixes_shards_and_real_c3d_takes() {
+    let dir = tempfile::tempdir().unwrap();
+    let synthetic = dir.path().join("synthetic");
+    std::fs::create_dir(&synthetic).unwrap();
+    let take = clean_take(3, 200);
+    let mut file = std::fs::File::create(synthetic.join("a.shard")).unwrap();
+    write_shard(&mut file, &take, &take, None, LabFrame::ZUpFromYUp).unwrap();
+    drop(file);
+    // `locap synth` leaves a C3D copy beside each shard: it must not be read a second time.
+    let c3d = |take: &Take, path: &std::path::Path| {
+        locap_io::c3d::write_path(&locap_io::c3d::C3dFile::from_take(take).unwrap(), path).unwrap()
+    };
+    c3d(&take, &synthetic.join("a.c3d"));
+    // A "real" take: another order, an unlabeled point, real gaps.
+    let real = dir.path().join("real");
+    std::fs::create_dir(&real).unwrap();
+    let mut names = take.markers().to_vec();
+    names.reverse();
+    names.push(locap_core::MarkerName::parse("*3"));
+    let samples: Vec<Option<Vec3>> = (0..150)
+        .flat_map(|f| {
+            let take = &take;
+            names.iter().map(move |n| match take.marker_index(&n.label) {
+                Some(k) if !(n.label == "LELB" && (50..80).contains(&f)) => take.position_mm(f, k),
+                _ => (n.is_unlabeled()).then(|| Vec3::new(1.0, 2.0, 3.0)),
+            })
+        })
+        .collect();
+    c3d(&Take::from_samples(names, &samples, 120.0).unwrap(), &real.join("b.c3d"));
+
+    let data = TrainingData::from_paths(&[real.clone(), synthetic.clone()]).unwrap();
+    assert_eq!((data.takes.len(), data.markers.len(), data.frames()), (2, 26, 350), "{:?}", data.names);
+    assert!(data.names[0].ends_with("a.shard") && data.names[1].ends_with("b.c3d"), "{:?}", data.names);
+    let (shard, real_take) = (&data.takes[0], &data.takes[1]);
+    let lelb = real_take.marker_index("LELB").unwrap();
+    assert_eq!(real_take.marker_index("LELB"), shard.marker_index("LELB"));
+    assert_eq!(
+        real_take.position_mm(10, lelb).map(|p| (p - take.position_mm(10, lelb).unwrap()).norm() < 0.1),
+        Some(true)
+    );
+    assert!(!real_take.is_valid(60, lelb));
+    // A take lacking a marker of the first one is refused by name.
+    let short = take.slice_frames(0..100);
+    let mut renamed = short.markers().to_vec();
+    renamed[0].label = "NEW".into();
+    let mut short = short;
+    short.set_markers(renamed).unwrap();
+    let e = TrainingData::new(vec![take.clone(), short], vec!["a".into(), "b".into()]).unwrap_err().to_string();
+    assert!(e.contains("b:") && e.contains(&take.markers()[0].label), "{e}");
+    let empty = tempfile::tempdir().unwrap();
+    let e = TrainingData::from_paths(&[empty.path().to_path_buf()]).unwrap_err().to_string();
+    assert!(e.contains("no .shard files"), "{e}");
+}
+
+#[test]
 fn models_refuse_other_marker_sets_and_bad_files() {
     let _one_at_a_time = TRAINING.lock().unwrap_or_else(|e| e.into_inner());
     let take = clean_take(1, 300);

@@ -135,6 +135,11 @@ pub struct FillArgs {
     /// Neighbours used by EDM.
     #[arg(long, default_value_t = 6)]
     neighbours: usize,
+    /// Learned refiners (`locap train fill`) to score on the same gaps: a model trained on EDM's
+    /// fill is reported as `neural`, one trained on the linear fill as `neural-no-edm` (the
+    /// paper's "w/o EDM initial value" ablation).
+    #[arg(long, value_name = "MODEL", num_args = 1..)]
+    model: Vec<PathBuf>,
     /// Also write the report as JSON.
     #[arg(long, value_name = "FILE")]
     json: Option<PathBuf>,
@@ -264,7 +269,30 @@ fn fill(args: FillArgs) -> Result<ExitCode> {
     if takes.is_empty() {
         bail!("no takes");
     }
-    eprintln!("filling hidden gaps in {} takes with {} methods...", takes.len(), Variant::all().len());
-    let report = fill_bench::run(&takes, &model, &Variant::all(), args.neighbours, args.seed);
+    let mut refiners = Vec::new();
+    for path in &args.model {
+        let bytes = std::fs::read(path).with_context(|| format!("{}", path.display()))?;
+        let refiner = locap_nn::Refiner::from_bytes(&bytes, &Default::default())
+            .with_context(|| format!("{}", path.display()))?;
+        let mut name = match refiner.meta.init {
+            locap_clean::FillMethod::Edm => "neural".to_string(),
+            other => {
+                format!("neural-{}", if other == locap_clean::FillMethod::Linear { "no-edm" } else { other.name() })
+            }
+        };
+        if args.model.len() > 1 {
+            name = format!("{name}:{}", path.file_stem().unwrap_or_default().to_string_lossy());
+        }
+        refiners.push((name, refiner));
+    }
+    let mut methods: Vec<fill_bench::Method> = Variant::all().into_iter().map(|v| v.method(args.neighbours)).collect();
+    for (name, refiner) in &refiners {
+        methods.push(fill_bench::Method {
+            name: name.clone(),
+            fill: Box::new(move |take| refiner.refine(take).map(|f| f.take).map_err(|e| e.to_string())),
+        });
+    }
+    eprintln!("filling hidden gaps in {} takes with {} methods...", takes.len(), methods.len());
+    let report = fill_bench::run_methods(&takes, &model, &methods, args.seed);
     publish(&report.table(), &report, args.json.as_deref())
 }

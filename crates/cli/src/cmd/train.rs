@@ -31,9 +31,11 @@ enum What {
 #[command(after_help = "Example:\n  locap synth --motion ../shared/data/cmu-asfamc/01 --format shard -o train/\n  \
                         locap train fill --data train/ --steps 2000 --out refiner.locapnn")]
 pub struct FillArgs {
-    /// Folder of `.shard` files written by `locap synth` (or one shard).
-    #[arg(long, value_name = "DIR", help_heading = "Data")]
-    data: PathBuf,
+    /// Training takes: `.shard` files written by `locap synth` (synthetic) and labeled `.c3d`
+    /// takes (real; their own gaps are not scored), or folders searched recursively for both.
+    /// The first take's markers are the model's.
+    #[arg(long, value_name = "PATH", num_args = 1.., required = true, help_heading = "Data")]
+    data: Vec<PathBuf>,
     /// Occlusion statistics for the on-the-fly Eq. 6 corruption: JSON (`locap stats`) or takes
     /// with real gaps. Default: the built-in statistics.
     #[arg(long, value_name = "STATS", num_args = 1.., help_heading = "Data")]
@@ -68,6 +70,18 @@ pub struct FillArgs {
     /// Continue from the checkpoints of an earlier run with the same output.
     #[arg(long, help_heading = "Training")]
     resume: bool,
+    /// The fill the network corrects: `edm` (the paper) or `linear` (the paper's "w/o EDM
+    /// initial value" ablation).
+    #[arg(long, default_value = "edm", value_parser = ["edm", "linear"], help_heading = "Network")]
+    init: String,
+    /// Feed each marker's position centred on a pooled training mean instead of on the take's
+    /// own mean (the first-phase behaviour; worse on subjects unlike the training ones).
+    #[arg(long, help_heading = "Network")]
+    pooled_centre: bool,
+    /// Offsets fade in over this many frames from a gap's captured borders, so filled samples
+    /// join the captured ones without a step (0: no fade).
+    #[arg(long, default_value_t = TrainConfig::default().taper_frames, value_name = "FRAMES", help_heading = "Network")]
+    taper: usize,
     /// Frames per window.
     #[arg(long, default_value_t = TrainConfig::default().window, value_name = "FRAMES", help_heading = "Network")]
     window: usize,
@@ -99,7 +113,14 @@ fn fill(args: FillArgs) -> Result<ExitCode> {
     if args.out.is_dir() {
         bail!("--out {} is a folder; give the model file to write", args.out.display());
     }
-    let data = TrainingData::from_path(&args.data)?;
+    let data = TrainingData::from_paths(&args.data)?;
+    let frame = locap_nn::features::frame_for(&data.markers).with_context(|| {
+        format!(
+            "no local frame is defined for these markers (the CMU waist LFWT/RFWT/LBWT/RBWT, the paper's \
+             wrists xIWR/xOWR/xIHAND/xOHAND or the CMU wrists xWRA/xWRB/xFIN); markers: {}",
+            data.markers.join(" ")
+        )
+    })?;
     let gap_model =
         if args.augment.is_empty() { GapModel::builtin() } else { crate::cmd::synth::read_model(&args.augment, 999)? };
     let defaults = TrainConfig::default();
@@ -113,6 +134,10 @@ fn fill(args: FillArgs) -> Result<ExitCode> {
         window: args.window,
         channels: args.channels,
         hidden: args.hidden,
+        frame,
+        per_take_centre: !args.pooled_centre,
+        taper_frames: args.taper,
+        init: if args.init == "linear" { locap_clean::FillMethod::Linear } else { locap_clean::FillMethod::Edm },
         augment: locap_synth::augment::AugmentConfig { missing_fraction: Some(args.p_occ), ..defaults.augment.clone() },
         ..defaults
     };
@@ -122,10 +147,11 @@ fn fill(args: FillArgs) -> Result<ExitCode> {
         (None, None) => config.steps,
     };
     eprintln!(
-        "training on {} takes, {} frames, {} markers: {} steps of {} x {} frames",
+        "training on {} takes, {} frames, {} markers ({} frame): {} steps of {} x {} frames",
         data.takes.len(),
         data.frames(),
         data.markers.len(),
+        config.frame.name,
         config.steps,
         config.batch,
         config.window
