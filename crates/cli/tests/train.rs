@@ -5,18 +5,19 @@ mod common;
 use common::{locap, repo, shared_data};
 
 #[test]
-fn neural_clean_needs_a_usable_model() {
+fn neural_clean_uses_the_shipped_refiner_or_a_usable_model() {
     let dir = tempfile::tempdir().unwrap();
     let take = repo().join("examples/cmu_01_01_last10s.c3d");
-    let out = locap()
-        .arg("clean")
-        .arg(&take)
-        .args(["--method", "neural", "-o"])
-        .arg(dir.path().join("o.c3d"))
-        .output()
-        .unwrap();
-    assert_eq!(out.status.code(), Some(2));
-    assert!(String::from_utf8_lossy(&out.stderr).contains("needs --model"));
+    // Without --model, the shipped body refiner fits the CMU example take.
+    let cleaned = dir.path().join("o.c3d");
+    let out = locap().arg("clean").arg(&take).args(["--method", "neural", "-o"]).arg(&cleaned).output().unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(text.contains("2 gaps, 30 samples filled"), "{text}");
+    let file = locap_io::c3d::read_path(&cleaned).unwrap();
+    let method = file.parameters.get("LOCAP", "METHOD").map(|p| p.strings().join(" ")).unwrap_or_default();
+    assert!(method.contains("shipped waist"), "{method}");
+
     let bad = dir.path().join("bad.locapnn");
     std::fs::write(&bad, b"LOCAPNN\0garbage").unwrap();
     let out = locap()
@@ -25,7 +26,7 @@ fn neural_clean_needs_a_usable_model() {
         .args(["--method", "neural", "--model"])
         .arg(&bad)
         .arg("-o")
-        .arg(dir.path().join("o.c3d"))
+        .arg(dir.path().join("o2.c3d"))
         .output()
         .unwrap();
     assert_eq!(out.status.code(), Some(2));
@@ -83,7 +84,9 @@ fn train_fill_then_clean_neural() {
     let json: serde_json::Value = serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();
     let methods = json["methods"].as_array().unwrap();
     let row = |name: &str| methods.iter().find(|m| m["method"] == name).unwrap_or_else(|| panic!("{name}: {json}"));
-    let (edm, neural) = (row("edm"), row("neural"));
+    let (edm, neural) = (row("edm"), row("neural:tiny"));
+    // The shipped refiner is scored beside it and refuses the numediart marker set too.
+    assert!(row("neural")["scored_samples"].as_u64().unwrap() > 0);
     let hidden = json["hidden_samples"].as_u64().unwrap();
     assert_eq!(edm["scored_samples"].as_u64(), Some(hidden));
     let scored = neural["scored_samples"].as_u64().unwrap();

@@ -11,16 +11,18 @@
 //! * [`model`]: the network (graph convolution, biLSTM, offset head).
 //! * [`features`]: a take to network inputs (EDM fill, local frame, normalisation) and back.
 //! * [`refiner`]: the versioned model file and inference over overlapping windows.
+//! * [`shipped`]: the trained refiners built into locap.
 //! * [`train`]: shard data loading with on-the-fly Eq. 6 augmentation, Adam, learning-rate
 //!   schedule, validation, checkpoints and resume, loss curve.
 
 pub mod features;
 pub mod model;
 pub mod refiner;
+pub mod shipped;
 pub mod train;
 
 pub use burn;
-pub use refiner::{ModelMeta, Refiner};
+pub use refiner::{ModelMeta, Refiner, refine_all, refine_all_of};
 pub use train::{TrainConfig, TrainReport};
 
 /// Errors of the refiner.

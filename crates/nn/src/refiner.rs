@@ -255,6 +255,40 @@ impl Refiner {
     }
 }
 
+/// Fills every gap of `take` with EDM and refines the markers of each of `refiners` (a body
+/// model and hand models together): each model's markers come from its own refinement, the
+/// other markers from EDM.
+///
+/// # Errors
+/// No refiners, or one whose markers the take lacks.
+pub fn refine_all(take: &Take, refiners: &[Refiner]) -> Result<Filled, NnError> {
+    refine_all_of(take, &refiners.iter().collect::<Vec<_>>())
+}
+
+/// [`refine_all`] with borrowed refiners.
+///
+/// # Errors
+/// As [`refine_all`].
+pub fn refine_all_of(take: &Take, refiners: &[&Refiner]) -> Result<Filled, NnError> {
+    let (first, rest) = refiners.split_first().ok_or_else(|| NnError::Data("no refiner given".into()))?;
+    let mut out = first.refine(take)?;
+    for refiner in rest {
+        let order = marker_order(take, &refiner.meta.markers)?;
+        let refined = refiner.refine(take)?;
+        let mt = take.marker_count();
+        for f in 0..take.frame_count() {
+            for &k in &order {
+                if refined.filled[f * mt + k] {
+                    // Copying a sample between takes of the same shape cannot fail.
+                    let _ = out.take.set_position_mm(f, k, refined.take.position_mm(f, k));
+                    out.filled[f * mt + k] = true;
+                }
+            }
+        }
+    }
+    Ok(out)
+}
+
 /// First frames of the windows of `w` frames covering `t` frames, overlapping by half; the last
 /// one ends at the last frame.
 pub fn window_starts(t: usize, w: usize) -> Vec<usize> {

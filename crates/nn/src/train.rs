@@ -86,6 +86,10 @@ pub struct TrainConfig {
     /// [`crate::features::offset_taper`]); the loss sees the faded offsets, as inference does.
     #[serde(default)]
     pub taper_frames: usize,
+    /// The fade written into the model for inference, if not `taper_frames`: a network trained
+    /// with a short fade may serve better with a longer one (chosen on held-out takes).
+    #[serde(default)]
+    pub inference_taper_frames: Option<usize>,
 }
 
 fn edm_init() -> FillMethod {
@@ -117,6 +121,7 @@ impl Default for TrainConfig {
             per_take_centre: true,
             init: FillMethod::Edm,
             taper_frames: 20,
+            inference_taper_frames: None,
         }
     }
 }
@@ -602,7 +607,7 @@ pub fn train(
         window: config.window,
         edm_neighbours: config.edm_neighbours,
         init: config.init,
-        taper_frames: config.taper_frames,
+        taper_frames: config.inference_taper_frames.unwrap_or(config.taper_frames),
         architecture,
         training: serde_json::Value::Null,
     };

@@ -137,9 +137,13 @@ pub struct FillArgs {
     neighbours: usize,
     /// Learned refiners (`locap train fill`) to score on the same gaps: a model trained on EDM's
     /// fill is reported as `neural`, one trained on the linear fill as `neural-no-edm` (the
-    /// paper's "w/o EDM initial value" ablation).
+    /// paper's "w/o EDM initial value" ablation). The refiners shipped with locap are scored
+    /// too, as `neural`, on the takes they fit.
     #[arg(long, value_name = "MODEL", num_args = 1..)]
     model: Vec<PathBuf>,
+    /// Leave the shipped refiners out.
+    #[arg(long)]
+    no_neural: bool,
     /// Also write the report as JSON.
     #[arg(long, value_name = "FILE")]
     json: Option<PathBuf>,
@@ -274,22 +278,35 @@ fn fill(args: FillArgs) -> Result<ExitCode> {
         let bytes = std::fs::read(path).with_context(|| format!("{}", path.display()))?;
         let refiner = locap_nn::Refiner::from_bytes(&bytes, &Default::default())
             .with_context(|| format!("{}", path.display()))?;
-        let mut name = match refiner.meta.init {
-            locap_clean::FillMethod::Edm => "neural".to_string(),
-            other => {
-                format!("neural-{}", if other == locap_clean::FillMethod::Linear { "no-edm" } else { other.name() })
-            }
+        let stem = path.file_stem().unwrap_or_default().to_string_lossy();
+        let name = match refiner.meta.init {
+            locap_clean::FillMethod::Linear => format!("neural-no-edm:{stem}"),
+            _ => format!("neural:{stem}"),
         };
-        if args.model.len() > 1 {
-            name = format!("{name}:{}", path.file_stem().unwrap_or_default().to_string_lossy());
-        }
         refiners.push((name, refiner));
     }
+    let shipped = if !args.no_neural { locap_nn::shipped::refiners(&Default::default())? } else { Vec::new() };
     let mut methods: Vec<fill_bench::Method> = Variant::all().into_iter().map(|v| v.method(args.neighbours)).collect();
     for (name, refiner) in &refiners {
         methods.push(fill_bench::Method {
             name: name.clone(),
             fill: Box::new(move |take| refiner.refine(take).map(|f| f.take).map_err(|e| e.to_string())),
+        });
+    }
+    if !shipped.is_empty() {
+        let shipped = &shipped;
+        methods.push(fill_bench::Method {
+            name: "neural".into(),
+            fill: Box::new(move |take| {
+                let fitting: Vec<&locap_nn::Refiner> = shipped
+                    .iter()
+                    .filter(|r| locap_nn::features::marker_order(take, &r.meta.markers).is_ok())
+                    .collect();
+                if fitting.is_empty() {
+                    return Err("no shipped refiner was trained on this marker set".into());
+                }
+                locap_nn::refine_all_of(take, &fitting).map(|f| f.take).map_err(|e| e.to_string())
+            }),
         });
     }
     eprintln!("filling hidden gaps in {} takes with {} methods...", takes.len(), methods.len());

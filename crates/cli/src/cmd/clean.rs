@@ -35,9 +35,11 @@ pub struct Args {
     /// Gap-filling method.
     #[arg(long, value_enum, default_value_t = Method::Edm, help_heading = "Filling")]
     method: Method,
-    /// Refiner model for `--method neural` (from `locap train fill`).
-    #[arg(long, value_name = "MODEL", help_heading = "Filling")]
-    model: Option<PathBuf>,
+    /// Refiner models for `--method neural` (from `locap train fill`; a body model and hand
+    /// models may be given together). Default: the refiners shipped with locap that fit the
+    /// take (CMU/HDM05 41-marker body set; see `models/README.md`).
+    #[arg(long, value_name = "MODEL", num_args = 1.., help_heading = "Filling")]
+    model: Vec<PathBuf>,
     /// Neighbours used by EDM (the paper's K).
     #[arg(long, default_value_t = 6, value_name = "K", help_heading = "Filling")]
     neighbours: usize,
@@ -68,7 +70,7 @@ pub enum Method {
     Pca,
     /// Rigid-body fill from 3 neighbours.
     Rigid,
-    /// EDM refined by the learned network of `--model` (LocalMoCap section 3.1).
+    /// EDM refined by a learned network, shipped or `--model` (LocalMoCap section 3.1).
     Neural,
 }
 
@@ -119,30 +121,72 @@ struct Summary {
 
 /// Runs `locap clean`.
 pub fn run(args: Args) -> Result<ExitCode> {
-    let model = match (args.method, &args.model) {
-        (Method::Neural, None) => bail!("--method neural needs --model MODEL (a model file from `locap train fill`)"),
-        (Method::Neural, Some(path)) => {
-            let bytes = std::fs::read(path).with_context(|| format!("{}", path.display()))?;
-            // Checked once here, so a bad model is a usage error, not a failure of every take.
-            locap_nn::Refiner::from_bytes(&bytes, &Default::default())
-                .with_context(|| format!("{}", path.display()))?;
-            Some(bytes)
+    let models = match args.method {
+        Method::Neural if args.model.is_empty() => Models::Shipped,
+        Method::Neural => {
+            let mut given = Vec::new();
+            for path in &args.model {
+                let bytes = std::fs::read(path).with_context(|| format!("{}", path.display()))?;
+                // Checked once here, so a bad model is a usage error, not a failure of every take.
+                locap_nn::Refiner::from_bytes(&bytes, &Default::default())
+                    .with_context(|| format!("{}", path.display()))?;
+                given.push(bytes);
+            }
+            Models::Given(given)
         }
-        (_, Some(_)) => bail!("--model is only used with --method neural"),
-        (_, None) => None,
+        _ if !args.model.is_empty() => bail!("--model is only used with --method neural"),
+        _ => Models::None,
     };
     let files = inputs::expand(&args.inputs, &["c3d"])?;
     let targets = inputs::targets(&args.inputs, &files, &args.output)?;
     let (done, failed) = crate::run_takes(&files, "cleaning", |i, input| {
         inputs::create_parent(&targets[i])?;
-        clean_one(input, &targets[i], &args, model.as_deref())
+        clean_one(input, &targets[i], &args, &models)
     });
     let text: String = done.iter().map(|(path, summary)| format_summary(path, summary)).collect();
     crate::emit(&text)?;
     Ok(if failed > 0 { ExitCode::from(1) } else { ExitCode::SUCCESS })
 }
 
-fn clean_one(input: &Path, output: &Path, args: &Args, model: Option<&[u8]>) -> Result<Summary> {
+/// The refiners of `--method neural`.
+enum Models {
+    /// Not refining.
+    None,
+    /// The shipped ones that fit each take.
+    Shipped,
+    /// Model files given with `--model` (all must fit).
+    Given(Vec<Vec<u8>>),
+}
+
+impl Models {
+    /// The refiners for `take` (loaded per job: a burn module is not shared between threads).
+    fn for_take(&self, take: &locap_core::Take) -> Result<Vec<locap_nn::Refiner>> {
+        let device = Default::default();
+        match self {
+            Models::None => Ok(Vec::new()),
+            Models::Given(files) => {
+                files.iter().map(|b| locap_nn::Refiner::from_bytes(b, &device).map_err(Into::into)).collect()
+            }
+            Models::Shipped => {
+                let fitting: Vec<locap_nn::Refiner> = locap_nn::shipped::refiners(&device)?
+                    .into_iter()
+                    .filter(|r| locap_nn::features::marker_order(take, &r.meta.markers).is_ok())
+                    .collect();
+                if fitting.is_empty() {
+                    let names: Vec<&str> = locap_nn::shipped::REFINERS.iter().map(|s| s.name).collect();
+                    bail!(
+                        "no shipped refiner fits this take's markers (shipped: {}); train one with `locap train fill` \
+                         and give it with --model, or use --method edm",
+                        names.join(", ")
+                    );
+                }
+                Ok(fitting)
+            }
+        }
+    }
+}
+
+fn clean_one(input: &Path, output: &Path, args: &Args, models: &Models) -> Result<Summary> {
     if input == output {
         bail!("{}: input and output are the same file; locap never overwrites its input", input.display());
     }
@@ -166,10 +210,11 @@ fn clean_one(input: &Path, output: &Path, args: &Args, model: Option<&[u8]>) -> 
             Ranking::Nearest => Selection::MeanDistance,
         },
     };
-    let mut filled = match model {
-        // One refiner per job: a burn module is not shared between threads.
-        Some(bytes) => locap_nn::Refiner::from_bytes(bytes, &Default::default())?.refine(&holed)?,
-        None => locap_clean::fill_gaps(&holed, &fill),
+    let refiners = models.for_take(&holed)?;
+    let mut filled = if refiners.is_empty() {
+        locap_clean::fill_gaps(&holed, &fill)
+    } else {
+        locap_nn::refine_all(&holed, &refiners)?
     };
     locap_clean::refill_outliers(&mut filled, &found);
     let mut summary = summarize(&raw, &filled.take, &filled.filled, &removed, &found);
@@ -199,11 +244,16 @@ fn clean_one(input: &Path, output: &Path, args: &Args, model: Option<&[u8]>) -> 
         })
         .collect();
     file.parameters.set_continued_strings("LOCAP", "SWAPS", &swap_ranges);
-    let method = match (model, &args.model) {
-        (Some(_), Some(path)) => {
-            format!("Neural {} (EDM start)", path.file_name().unwrap_or_default().to_string_lossy())
-        }
-        _ => format!("{:?} K={}", fill.method, fill.neighbours),
+    let method = if refiners.is_empty() {
+        format!("{:?} K={}", fill.method, fill.neighbours)
+    } else {
+        let names: Vec<String> = match models {
+            Models::Given(_) => {
+                args.model.iter().map(|p| p.file_name().unwrap_or_default().to_string_lossy().into_owned()).collect()
+            }
+            _ => refiners.iter().map(|r| format!("shipped {}", r.meta.frame.name)).collect(),
+        };
+        format!("Neural {} (EDM start)", names.join(" + "))
     };
     file.parameters.set_strings("LOCAP", "METHOD", &[method]);
     c3d::write_path(&file, output)?;

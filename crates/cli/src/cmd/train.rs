@@ -82,6 +82,11 @@ pub struct FillArgs {
     /// join the captured ones without a step (0: no fade).
     #[arg(long, default_value_t = TrainConfig::default().taper_frames, value_name = "FRAMES", help_heading = "Network")]
     taper: usize,
+    /// The fade the model applies at inference, if not `--taper` (a network trained with a
+    /// short fade may fill better with a longer one; with `--resume` on a finished run this
+    /// rewrites the model without training).
+    #[arg(long, value_name = "FRAMES", help_heading = "Network")]
+    inference_taper: Option<usize>,
     /// Frames per window.
     #[arg(long, default_value_t = TrainConfig::default().window, value_name = "FRAMES", help_heading = "Network")]
     window: usize,
@@ -137,6 +142,7 @@ fn fill(args: FillArgs) -> Result<ExitCode> {
         frame,
         per_take_centre: !args.pooled_centre,
         taper_frames: args.taper,
+        inference_taper_frames: args.inference_taper,
         init: if args.init == "linear" { locap_clean::FillMethod::Linear } else { locap_clean::FillMethod::Edm },
         augment: locap_synth::augment::AugmentConfig { missing_fraction: Some(args.p_occ), ..defaults.augment.clone() },
         ..defaults
