@@ -126,3 +126,35 @@ fn train_fill_then_clean_neural() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("03_rolling") && err.contains("another marker set"), "{err}");
 }
+
+/// The shipped refiner must keep beating EDM alone, in mean and 95th percentile, on a real take
+/// of a subject it never saw (the figures of the README's refiner table come from the same
+/// command on three takes).
+#[test]
+fn shipped_refiner_beats_edm_on_a_held_out_real_take() {
+    let Some(data) = shared_data() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let report = dir.path().join("bench.json");
+    let out = locap()
+        .args(["bench", "fill"])
+        .arg(data.join("cmu-c3d/85_12.c3d"))
+        .arg("--json")
+        .arg(&report)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let json: serde_json::Value = serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();
+    let row = |name: &str| json["methods"].as_array().unwrap().iter().find(|m| m["method"] == name).unwrap().clone();
+    let (edm, neural) = (row("edm"), row("neural"));
+    let f = |m: &serde_json::Value, k: &str| m[k].as_f64().unwrap();
+    eprintln!(
+        "85_12: EDM {:.2} / p95 {:.2} mm, refiner {:.2} / p95 {:.2} mm",
+        f(&edm, "ompe_mean_mm"),
+        f(&edm, "ompe_p95_mm"),
+        f(&neural, "ompe_mean_mm"),
+        f(&neural, "ompe_p95_mm")
+    );
+    assert_eq!(neural["unfilled_samples"].as_u64(), Some(0));
+    assert!(f(&neural, "ompe_mean_mm") < f(&edm, "ompe_mean_mm"), "{neural}\n{edm}");
+    assert!(f(&neural, "ompe_p95_mm") < f(&edm, "ompe_p95_mm"), "{neural}\n{edm}");
+}

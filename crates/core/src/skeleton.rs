@@ -64,6 +64,13 @@ pub struct Joint {
     pub is_end_site: bool,
 }
 
+impl Joint {
+    /// A rotating joint (not an end site) with the ZXY Euler order of CMU's BVH files.
+    pub fn new(name: impl Into<String>, parent: Option<usize>, offset_mm: Vec3) -> Joint {
+        Joint { name: name.into(), parent, offset_mm, rotation_order: EulerOrder::ZXY, is_end_site: false }
+    }
+}
+
 /// A joint hierarchy with rest offsets.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Skeleton {
@@ -228,13 +235,7 @@ mod tests {
     use proptest::prelude::*;
 
     fn joint(name: &str, parent: Option<usize>, offset: [f64; 3]) -> Joint {
-        Joint {
-            name: name.into(),
-            parent,
-            offset_mm: Vec3::from(offset),
-            rotation_order: EulerOrder::ZXY,
-            is_end_site: false,
-        }
+        Joint::new(name, parent, Vec3::from(offset))
     }
 
     fn arm() -> Skeleton {

@@ -262,9 +262,10 @@ impl FillBenchReport {
             self.hidden_samples,
             self.seed
         );
+        let w = self.methods.iter().map(|m| m.method.len()).max().unwrap_or(0).max(14);
         let _ = write!(
             s,
-            "{:<16} {:>9} {:>9} {:>9} {:>9} {:>9}",
+            "{:<w$} {:>9} {:>9} {:>9} {:>9} {:>9}",
             "method", "OMPE mm", "common", "median", "p95", "unfilled"
         );
         for (lo, hi) in BUCKETS {
@@ -275,7 +276,7 @@ impl FillBenchReport {
         for m in &self.methods {
             let _ = write!(
                 s,
-                "{:<16} {:>9.2} {:>9.2} {:>9.2} {:>9.2} {:>9}",
+                "{:<w$} {:>9.2} {:>9.2} {:>9.2} {:>9.2} {:>9}",
                 m.method, m.ompe_mean_mm, m.ompe_common_mm, m.ompe_median_mm, m.ompe_p95_mm, m.unfilled_samples
             );
             for b in &m.by_gap_length {

@@ -3,7 +3,7 @@
 //! inference only changes the samples that were missing.
 
 use locap_clean::local_frame::FrameDefinition;
-use locap_core::{EulerOrder, Joint, Motion, Quat, Skeleton, Take, Vec3};
+use locap_core::{Joint, Motion, Quat, Skeleton, Take, Vec3};
 use locap_nn::train::{Checkpoints, TrainingData, train};
 use locap_nn::{Refiner, TrainConfig};
 use locap_synth::augment::AugmentConfig;
@@ -15,13 +15,7 @@ use rand::SeedableRng;
 use rand::rngs::StdRng;
 
 fn joint(name: &str, parent: Option<usize>, offset_mm: [f64; 3]) -> Joint {
-    Joint {
-        name: name.into(),
-        parent,
-        offset_mm: Vec3::from(offset_mm),
-        rotation_order: EulerOrder::ZXY,
-        is_end_site: false,
-    }
+    Joint::new(name, parent, Vec3::from(offset_mm))
 }
 
 /// A small Y-up body: hips, chest, two arms and two legs.

@@ -1,17 +1,11 @@
 //! Builders shared by the unit tests.
 
 use crate::layout::{Layout, LayoutMarker, Region};
-use locap_core::{EulerOrder, Joint, Vec3};
+use locap_core::{Joint, Vec3};
 
 /// A joint with a ZXY order, not an end site.
 pub fn joint(name: &str, parent: Option<usize>, offset_mm: [f64; 3]) -> Joint {
-    Joint {
-        name: name.into(),
-        parent,
-        offset_mm: Vec3::from(offset_mm),
-        rotation_order: EulerOrder::ZXY,
-        is_end_site: false,
-    }
+    Joint::new(name, parent, Vec3::from(offset_mm))
 }
 
 /// An unblended body marker.
