@@ -11,12 +11,15 @@
 //! * [`model`]: the network (graph convolution, biLSTM, offset head).
 //! * [`features`]: a take to network inputs (EDM fill, local frame, normalisation) and back.
 //! * [`refiner`]: the versioned model file and inference over overlapping windows.
+//! * [`solver`]: the motion solver of section 3.2 (heterogeneous graph network, baselines,
+//!   training, metrics).
 //! * [`train`]: shard data loading with on-the-fly Eq. 6 augmentation, Adam, learning-rate
 //!   schedule, validation, checkpoints and resume, loss curve.
 
 pub mod features;
 pub mod model;
 pub mod refiner;
+pub mod solver;
 pub mod train;
 
 pub use burn;

@@ -1,0 +1,24 @@
+//! The motion solver of LocalMoCap section 3.2 (Eq. 4-5) and its comparisons of section 4
+//! (Table 1): cleaned markers in the waist frame -> per-frame joint rotations, bone offsets and
+//! root translation, solved by a heterogeneous marker/joint graph network.
+//!
+//! * [`net`]: the networks (heterogeneous graph, no-marker-convolution ablation, Holden 2018
+//!   MLP), Gram-Schmidt and forward kinematics in burn.
+//! * [`data`]: training shards with their skeleton, the cleaning before solving, per-frame
+//!   truth in the waist frame.
+//! * [`model`]: the versioned model file (`LOCAPSV\0`) and inference on a take.
+//! * [`train`]: Eq. 5 training with the refiner's machinery.
+//! * [`eval`]: the paper's metrics (JOE, JPE, OMPE) on held-out shards.
+//!
+//! Only body networks exist: the training data (CMU skeleton motion) has no finger motion, so
+//! the paper's separate hand networks and its body+hands ablation are not built.
+
+pub mod data;
+pub mod eval;
+pub mod model;
+pub mod net;
+pub mod train;
+
+pub use model::{Solver, SolverMeta};
+pub use net::Variant;
+pub use train::{SolverData, SolverReport, SolverTrainConfig, train_solver};
