@@ -299,7 +299,8 @@ mod tests {
     fn skeleton_in_the_header() {
         use crate::test_util::joint;
         let (clean, observed) = takes();
-        let sk = Skeleton::new(vec![joint("root", None, [0.0; 3]), joint("knee", Some(0), [0.0, -400.0, 0.0])]).unwrap();
+        let sk =
+            Skeleton::new(vec![joint("root", None, [0.0; 3]), joint("knee", Some(0), [0.0, -400.0, 0.0])]).unwrap();
         let rot = vec![locap_core::Quat::identity(); 2 * 5];
         let motion = Motion::new(sk.clone(), rot, vec![Vec3::new(1.0, 2.0, 3.0); 5], 100.0).unwrap();
         let mut bytes = Vec::new();
