@@ -201,7 +201,7 @@ fn score_take(solver: &Solver, shard: &SolverShard, cleaned: &Cleaned) -> Result
     let mut acc = Acc::new(j);
     acc.seconds = started.elapsed().as_secs_f64();
     let longest = longest_gap_per_frame(shard);
-    for f in 0..motion.frame_count() {
+    for (f, longest) in longest.iter().enumerate().take(motion.frame_count()) {
         let pose = motion.forward_kinematics(f);
         let mut frame = Mean::default();
         for (k, p) in pose.positions_mm.iter().enumerate() {
@@ -209,7 +209,7 @@ fn score_take(solver: &Solver, shard: &SolverShard, cleaned: &Cleaned) -> Result
             acc.jpe[k].add(e);
             frame.add(e);
         }
-        acc.jpe_by_gap[gap_bin(longest[f])].add(frame.get().unwrap_or(0.0));
+        acc.jpe_by_gap[gap_bin(*longest)].add(frame.get().unwrap_or(0.0));
         let truth = &shard.rotations[f * j..(f + 1) * j];
         for (k, (q, t)) in motion.local_rotations(f).iter().zip(truth).enumerate() {
             if solver.meta.rotating[k] {
@@ -239,4 +239,82 @@ pub fn table(scores: &[MethodScores]) -> String {
     row(&mut out, "JPE (mm)", &|s| Some(s.jpe_mm));
     row(&mut out, "OMPE (mm)", &|s| s.ompe_mm);
     out
+}
+
+/// A solved motion against a reference solution of the same take (e.g. CMU's own AMC).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct MotionComparison {
+    /// Frames compared (the shorter of the two).
+    pub frames: usize,
+    /// Joints compared (same name in both skeletons).
+    pub joints: usize,
+    /// JPE: global joint positions, mm.
+    pub jpe_mm: f64,
+    /// JPE after moving each frame's solved root onto the reference root (pose error only), mm.
+    pub jpe_root_aligned_mm: f64,
+    /// Root position error, mm.
+    pub root_mm: f64,
+    /// JOE over the solver's rotating joints (the root's global rotation included), degrees.
+    pub joe_deg: f64,
+    /// Per compared joint: name, JPE mm, JOE degrees (`None` where not compared).
+    pub per_joint: Vec<(String, f64, Option<f64>)>,
+}
+
+/// Compares `solved` with `reference` joint by joint (matched by name; both in the same motion
+/// frame and units). JOE is taken over the joints `rotating` marks (by `solved`'s index).
+///
+/// # Errors
+/// No frames or no joint names in common.
+pub fn compare_motions(
+    solved: &locap_core::Motion,
+    reference: &locap_core::Motion,
+    rotating: &[bool],
+) -> Result<MotionComparison, NnError> {
+    let frames = solved.frame_count().min(reference.frame_count());
+    let pairs: Vec<(usize, usize)> = solved
+        .skeleton
+        .joints()
+        .iter()
+        .enumerate()
+        .filter_map(|(i, j)| reference.skeleton.index_of(&j.name).map(|r| (i, r)))
+        .collect();
+    if frames == 0 || pairs.is_empty() {
+        return Err(NnError::Data("the motions share no frames or no joint names".into()));
+    }
+    let mut jpe = vec![Mean::default(); pairs.len()];
+    let mut joe = vec![Mean::default(); pairs.len()];
+    let (mut aligned, mut root) = (Mean::default(), Mean::default());
+    for f in 0..frames {
+        let (a, b) = (solved.forward_kinematics(f), reference.forward_kinematics(f));
+        let shift = b.positions_mm[0] - a.positions_mm[0];
+        root.add(shift.norm());
+        let (la, lb) = (solved.local_rotations(f), reference.local_rotations(f));
+        for (k, &(i, r)) in pairs.iter().enumerate() {
+            jpe[k].add((a.positions_mm[i] - b.positions_mm[r]).norm());
+            aligned.add((a.positions_mm[i] + shift - b.positions_mm[r]).norm());
+            if rotating.get(i).copied().unwrap_or(false) {
+                joe[k].add(la[i].angle_to(&lb[r]).to_degrees());
+            }
+        }
+    }
+    let pooled = |v: &[Mean]| {
+        let mut t = Mean::default();
+        v.iter().for_each(|m| t.merge(m));
+        t.get().unwrap_or(f64::NAN)
+    };
+    Ok(MotionComparison {
+        frames,
+        joints: pairs.len(),
+        jpe_mm: pooled(&jpe),
+        jpe_root_aligned_mm: aligned.get().unwrap_or(f64::NAN),
+        root_mm: root.get().unwrap_or(f64::NAN),
+        joe_deg: pooled(&joe),
+        per_joint: pairs
+            .iter()
+            .enumerate()
+            .map(|(k, &(i, _))| {
+                (solved.skeleton.joints()[i].name.clone(), jpe[k].get().unwrap_or(f64::NAN), joe[k].get())
+            })
+            .collect(),
+    })
 }
