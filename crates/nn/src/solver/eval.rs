@@ -318,3 +318,46 @@ pub fn compare_motions(
             .collect(),
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use locap_core::{EulerOrder, Joint, Motion, Quat, Skeleton, Vec3};
+
+    fn motion(knee_deg: f64, root_x_mm: f64, extra_joint: bool) -> Motion {
+        let joint = |name: &str, parent: Option<usize>, y: f64| Joint {
+            name: name.into(),
+            parent,
+            offset_mm: Vec3::new(0.0, y, 0.0),
+            rotation_order: EulerOrder::ZXY,
+            is_end_site: false,
+        };
+        let mut joints =
+            vec![joint("root", None, 0.0), joint("knee", Some(0), -400.0), joint("ankle", Some(1), -400.0)];
+        if extra_joint {
+            joints.push(joint("other", Some(0), 100.0));
+        }
+        let n = joints.len();
+        let sk = Skeleton::new(joints).unwrap();
+        let mut rot = vec![Quat::identity(); 2 * n];
+        rot[1] = EulerOrder::ZXY.to_quat_deg([0.0, knee_deg, 0.0]);
+        rot[n + 1] = rot[1];
+        Motion::new(sk, rot, vec![Vec3::new(root_x_mm, 900.0, 0.0); 2], 120.0).unwrap()
+    }
+
+    #[test]
+    fn motions_compare_by_joint_name() {
+        let truth = motion(0.0, 0.0, true);
+        let same = compare_motions(&motion(0.0, 0.0, false), &truth, &[true, true, true]).unwrap();
+        assert_eq!((same.frames, same.joints), (2, 3));
+        assert!(same.jpe_mm < 1e-9 && same.joe_deg < 1e-6);
+        // A root 30 mm off and the knee bent by 90 degrees: the ankle moves 400 * sqrt(2) mm
+        // more.
+        let off = compare_motions(&motion(90.0, 30.0, false), &truth, &[false, true, false]).unwrap();
+        assert!((off.root_mm - 30.0).abs() < 1e-9);
+        assert!((off.joe_deg - 90.0).abs() < 1e-6, "only the knee is compared: {off:?}");
+        let ankle = off.per_joint.iter().find(|j| j.0 == "ankle").unwrap();
+        assert!((ankle.1 - Vec3::new(30.0, 400.0, 400.0).norm()).abs() < 1e-6, "{ankle:?}");
+        assert!((off.jpe_root_aligned_mm - 400.0 * 2f64.sqrt() / 3.0).abs() < 1e-6, "{off:?}");
+    }
+}
