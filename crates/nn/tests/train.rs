@@ -269,7 +269,7 @@ fn a_tiny_solver_learns_and_solves_takes() {
         train_solver(&data, &SolverTrainConfig { steps: 1, ..config.clone() }, None, &mut |_| {}).unwrap().0;
     let scores =
         evaluate(&[("trained".into(), &solver), ("untrained".into(), &untrained)], &test.shards, None).unwrap();
-    eprintln!("{}", locap_nn::solver::eval::table(&scores));
+    eprintln!("{}", locap_nn::solver::eval::table("body", &scores));
     assert!(scores[0].jpe_mm < 0.5 * scores[1].jpe_mm && scores[0].joe_deg < scores[1].joe_deg, "{scores:?}");
     assert!(scores[0].ompe_mm.unwrap() > 0.0);
 

@@ -59,7 +59,7 @@ struct Report {
     gap_bins: Vec<String>,
     methods: Vec<MethodScores>,
     real: Vec<RealRow>,
-    hands: &'static str,
+    region: &'static str,
 }
 
 /// One real take solved by one model, against its reference.
@@ -122,8 +122,9 @@ pub fn run(args: Args) -> Result<ExitCode> {
         data.frames(),
         if refiner.is_some() { "EDM + refiner" } else { "EDM" }
     );
-    text.push_str(&table(&scores));
-    text.push_str("hands: not evaluated (the training data has no finger motion)\n");
+    // A waist frame solves a body; a wrist frame a hand.
+    let region = if solvers[0].1.meta.frame.name.contains("wrist") { "hand" } else { "body" };
+    text.push_str(&table(region, &scores));
     let real = real_rows(&args, &solvers, refiner.as_ref())?;
     if !real.is_empty() {
         text.push_str(&format!(
@@ -155,7 +156,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
             gap_bins: (0..GAP_BINS.len()).map(gap_bin_label).collect(),
             methods: scores.clone(),
             real,
-            hands: "not evaluated: the training data has no finger motion",
+            region,
         };
         crate::inputs::create_parent(path)?;
         crate::inputs::write_json(path, &report)?;

@@ -9,6 +9,7 @@
 
 use anyhow::{Context, Result, bail};
 use clap::{Parser, ValueEnum};
+use locap_clean::local_frame::FrameDefinition;
 use locap_nn::solver::{SolverData, SolverTrainConfig, Variant, train_solver};
 use locap_nn::train::Checkpoints;
 use std::path::PathBuf;
@@ -35,6 +36,17 @@ impl From<Arch> for Variant {
     }
 }
 
+/// Local frames on the command line.
+#[derive(Debug, Clone, Copy, ValueEnum, PartialEq, Eq)]
+pub enum Frame {
+    /// The waist of the CMU 41-marker set (body solvers).
+    Waist,
+    /// The left wrist of the paper's hand set (`LIWR`, `LOWR`, `LIHAND`, `LOHAND`).
+    LeftWrist,
+    /// The right wrist of the paper's hand set.
+    RightWrist,
+}
+
 /// Arguments of `locap train solve`.
 #[derive(Parser, Debug)]
 #[command(after_help = "Example:\n  locap synth --motion ../shared/data/cmu-asfamc/01 --augment \
@@ -50,6 +62,12 @@ pub struct SolveArgs {
     /// Network.
     #[arg(long, value_enum, default_value_t = Arch::Graph, help_heading = "Network")]
     arch: Arch,
+    /// Local frame the markers are expressed in (LocalMoCap section 3.1).
+    #[arg(long, value_enum, default_value_t = Frame::Waist, help_heading = "Network")]
+    frame: Frame,
+    /// Mean marker-joint distance that links a marker to a joint, mm (about 40 for hands).
+    #[arg(long, default_value_t = SolverTrainConfig::default().link_threshold_mm, value_name = "MM", help_heading = "Network")]
+    link_mm: f64,
     /// Features per marker and joint node.
     #[arg(long, default_value_t = SolverTrainConfig::default().channels, value_name = "N", help_heading = "Network")]
     channels: usize,
@@ -99,6 +117,12 @@ pub fn run(args: SolveArgs) -> Result<ExitCode> {
         validation_fraction: args.validation_fraction,
         channels: args.channels,
         global: args.global,
+        link_threshold_mm: args.link_mm,
+        frame: match args.frame {
+            Frame::Waist => FrameDefinition::cmu_waist(),
+            Frame::LeftWrist => FrameDefinition::paper_wrist('L'),
+            Frame::RightWrist => FrameDefinition::paper_wrist('R'),
+        },
         ..SolverTrainConfig::default()
     };
     eprintln!(

@@ -220,10 +220,11 @@ fn score_take(solver: &Solver, shard: &SolverShard, cleaned: &Cleaned) -> Result
     Ok(acc)
 }
 
-/// Table 1 as text: one row per metric, one column per method.
-pub fn table(scores: &[MethodScores]) -> String {
+/// Table 1 as text: one row per metric, one column per method; `region` heads the first
+/// column (body, hand).
+pub fn table(region: &str, scores: &[MethodScores]) -> String {
     use std::fmt::Write as _;
-    let mut out = format!("{:<12}", "body");
+    let mut out = format!("{region:<12}");
     for s in scores {
         let _ = write!(out, " {:>16}", s.name);
     }

@@ -9,7 +9,8 @@
 //!   their distance over the training takes, section 3);
 //! * joint - joint: each joint, its parent and its children (the bones);
 //! * marker - joint: a joint is linked to the markers whose mean distance to it over the
-//!   training frames is below [`MARKER_JOINT_THRESHOLD_MM`] (at least the
+//!   training frames is below a threshold (default [`MARKER_JOINT_THRESHOLD_MM`] for bodies,
+//!   about 40 mm suits hands; at least the
 //!   [`MIN_MARKERS_PER_JOINT`] nearest, at most [`MAX_MARKERS_PER_JOINT`]); the paper uses the
 //!   T-pose distance, the pose-averaged distance is the same for markers on the joint's own
 //!   segment and keeps markers that only pass near a joint at rest out;
@@ -44,7 +45,7 @@ use burn::prelude::*;
 use burn::tensor::activation::leaky_relu;
 use serde::{Deserialize, Serialize};
 
-/// Pose-averaged marker-joint distance below which they are linked, mm.
+/// Default pose-averaged marker-joint distance below which they are linked (bodies), mm.
 pub const MARKER_JOINT_THRESHOLD_MM: f64 = 150.0;
 /// Every joint is linked to at least this many markers (its nearest).
 pub const MIN_MARKERS_PER_JOINT: usize = 2;

@@ -64,6 +64,9 @@ pub struct SolverTrainConfig {
     pub global: usize,
     /// Marker-graph neighbours `K` (the paper: 3).
     pub neighbours: usize,
+    /// Pose-averaged marker-joint distance that links a marker to a joint, mm.
+    #[serde(default = "default_link")]
+    pub link_threshold_mm: f64,
     /// `λ_M`: rotation term weight.
     pub rotation_weight: f64,
     /// `λ_S`: offset term weight, per mm.
@@ -92,12 +95,17 @@ impl Default for SolverTrainConfig {
             channels: 32,
             global: 128,
             neighbours: 3,
+            link_threshold_mm: MARKER_JOINT_THRESHOLD_MM,
             rotation_weight: 1.0,
             offset_weight_per_mm: 0.01,
             fk_weight_per_mm: 0.02,
             frame: FrameDefinition::cmu_waist(),
         }
     }
+}
+
+fn default_link() -> f64 {
+    MARKER_JOINT_THRESHOLD_MM
 }
 
 impl SolverTrainConfig {
@@ -110,6 +118,9 @@ impl SolverTrainConfig {
         }
         if !(0.0..0.9).contains(&self.validation_fraction) {
             return Err(NnError::Data(format!("validation fraction {} must be in 0..0.9", self.validation_fraction)));
+        }
+        if !(self.link_threshold_mm.is_finite() && self.link_threshold_mm > 0.0) {
+            return Err(NnError::Data(format!("link threshold {} mm must be positive", self.link_threshold_mm)));
         }
         Ok(())
     }
@@ -430,7 +441,7 @@ fn prepare(data: &SolverData, config: &SolverTrainConfig) -> Result<(SolverMeta,
             order
                 .into_iter()
                 .enumerate()
-                .take_while(|(rank, k)| *rank < MIN_MARKERS_PER_JOINT || row[*k] < MARKER_JOINT_THRESHOLD_MM)
+                .take_while(|(rank, k)| *rank < MIN_MARKERS_PER_JOINT || row[*k] < config.link_threshold_mm)
                 .take(MAX_MARKERS_PER_JOINT)
                 .map(|(_, k)| k)
                 .collect()
