@@ -50,8 +50,14 @@ enum Command {
     View(cmd::view::Args),
     /// Draw PNG/SVG charts: gap lengths, occlusion rates, fill error by gap length.
     Plot(cmd::plot::Args),
-    /// Train networks: the learned gap-fill refiner (LocalMoCap section 3.1) on synth shards.
+    /// Train networks on synth shards: the learned gap-fill refiner (LocalMoCap section 3.1) or
+    /// the motion solver (section 3.2).
     Train(cmd::train::Args),
+    /// Solve raw takes to skeleton motion (BVH): cleaning, then the learned motion solver
+    /// (LocalMoCap section 3.2).
+    Solve(cmd::solve::Args),
+    /// Compare motion solvers on held-out synthetic data: JOE, JPE, OMPE (LocalMoCap Table 1).
+    Eval(cmd::eval::Args),
 }
 
 fn main() -> ExitCode {
@@ -70,6 +76,8 @@ fn main() -> ExitCode {
         Command::View(args) => cmd::view::run(args),
         Command::Plot(args) => cmd::plot::run(args),
         Command::Train(args) => cmd::train::run(args),
+        Command::Solve(args) => cmd::solve::run(args),
+        Command::Eval(args) => cmd::eval::run(args),
     };
     match result {
         Ok(code) => code,

@@ -12,6 +12,8 @@
 //! * [`features`]: a take to network inputs (EDM fill, local frame, normalisation) and back.
 //! * [`refiner`]: the versioned model file and inference over overlapping windows.
 //! * [`shipped`]: the trained refiners built into locap.
+//! * [`solver`]: the motion solver of section 3.2 (heterogeneous graph network, baselines,
+//!   training, metrics).
 //! * [`train`]: shard data loading with on-the-fly Eq. 6 augmentation, Adam, learning-rate
 //!   schedule, validation, checkpoints and resume, loss curve.
 
@@ -19,6 +21,7 @@ pub mod features;
 pub mod model;
 pub mod refiner;
 pub mod shipped;
+pub mod solver;
 pub mod train;
 
 pub use burn;

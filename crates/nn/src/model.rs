@@ -50,7 +50,9 @@ pub struct GraphConv {
 }
 
 impl GraphConv {
-    fn new(markers: usize, edges: usize, c_in: usize, c_out: usize, device: &Device) -> GraphConv {
+    /// A layer for `markers` destination nodes with `edges` incoming edges each (the node
+    /// itself counted where it is one of them), `c_in` features in and `c_out` out.
+    pub fn new(markers: usize, edges: usize, c_in: usize, c_out: usize, device: &Device) -> GraphConv {
         let fan_in = edges * c_in;
         let weight = Initializer::KaimingUniform { gain: 1.0 / 3.0f64.sqrt(), fan_out_only: false }.init_with(
             [markers, fan_in, c_out],
@@ -62,11 +64,12 @@ impl GraphConv {
         GraphConv { weight, bias }
     }
 
-    /// `x`: `[n, markers, c_in]`; `gather`: the `markers * (K+1)` node indices, node `i`'s
-    /// edges at `i*(K+1)..(i+1)*(K+1)`. Returns `[n, markers, c_out]`.
+    /// `x`: `[n, nodes, c_in]`; `gather`: the `markers * (K+1)` source node indices, node `i`'s
+    /// edges at `i*(K+1)..(i+1)*(K+1)`. Returns `[n, markers, c_out]`. The source nodes may
+    /// be another graph's (an inter-graph convolution, LocalMoCap section 3.2).
     pub fn forward(&self, x: Tensor<3>, gather: Tensor<1, Int>) -> Tensor<3> {
-        let [n, m, c_in] = x.dims();
-        let [_, fan_in, c_out] = self.weight.dims();
+        let [n, _, c_in] = x.dims();
+        let [m, fan_in, c_out] = self.weight.dims();
         let edges = fan_in / c_in;
         let gathered = x.select(1, gather).reshape([n, m, edges * c_in]).swap_dims(0, 1);
         let y = gathered.matmul(self.weight.val()) + self.bias.val().reshape([m, 1, c_out]);

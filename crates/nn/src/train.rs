@@ -391,7 +391,7 @@ impl Sampler<'_> {
 }
 
 /// A stream of independent generators: example `index` of step `step`.
-fn rng_for(seed: u64, step: u64, index: u64) -> StdRng {
+pub(crate) fn rng_for(seed: u64, step: u64, index: u64) -> StdRng {
     // SplitMix64 finaliser over the three numbers.
     let mut z = seed ^ step.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ index.wrapping_mul(0xD1B5_4A32_D192_ED03);
     z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
@@ -532,12 +532,12 @@ impl Checkpoints {
     }
 }
 
-fn write_file(path: &Path, bytes: &[u8]) -> Result<(), NnError> {
+pub(crate) fn write_file(path: &Path, bytes: &[u8]) -> Result<(), NnError> {
     locap_io::atomic::write_atomically(path, |w| Ok(w.write_all(bytes)?))
         .map_err(|e| NnError::Data(format!("{}: {e}", path.display())))
 }
 
-fn read_file(path: &Path) -> Result<Vec<u8>, NnError> {
+pub(crate) fn read_file(path: &Path) -> Result<Vec<u8>, NnError> {
     std::fs::read(path).map_err(|source| NnError::Io { path: path.display().to_string(), source })
 }
 

@@ -263,3 +263,95 @@ fn models_refuse_other_marker_sets_and_bad_files() {
     bytes.truncate(n - 100);
     assert!(Refiner::from_bytes(&bytes, &device).is_err());
 }
+
+/// Writes `n` shards of the tiny body (clean markers, Eq. 6-corrupted markers, motion with its
+/// skeleton) under `dir`, one subject and motion phase per shard.
+fn solver_shards(dir: &std::path::Path, n: u64, frames: usize) {
+    for seed in 0..n {
+        let mut rng = StdRng::seed_from_u64(seed);
+        let config = SynthConfig { lab: LabFrame::ZUpFromYUp, ..SynthConfig::default() };
+        let synth = synthesize(&motion(frames, 120.0, 5.0 * seed as f64), &layout(), &config, &mut rng).unwrap();
+        let augment = AugmentConfig { missing_fraction: Some(0.05), ..AugmentConfig::default() };
+        let observed = locap_synth::augment::augment(&synth.take, &GapModel::builtin(), &augment, &mut rng).unwrap();
+        let mut file = std::fs::File::create(dir.join(format!("s{seed}.shard"))).unwrap();
+        write_shard(&mut file, &synth.take, &observed.take, Some(&synth.motion), LabFrame::ZUpFromYUp).unwrap();
+    }
+}
+
+/// A tiny graph solver learns (validation joint error falls), beats its untrained self on
+/// held-out shards through the `locap solve` path, round-trips its model file, and refuses
+/// other marker sets and bad files; the MLP baseline trains in the same harness.
+#[test]
+fn a_tiny_solver_learns_and_solves_takes() {
+    use locap_nn::solver::eval::evaluate;
+    use locap_nn::solver::{Solver, SolverData, SolverTrainConfig, Variant, train_solver};
+    let _one_at_a_time = TRAINING.lock().unwrap_or_else(|e| e.into_inner());
+    let dir = tempfile::tempdir().unwrap();
+    let (train_dir, test_dir) = (dir.path().join("train"), dir.path().join("test"));
+    std::fs::create_dir_all(&train_dir).unwrap();
+    std::fs::create_dir_all(&test_dir).unwrap();
+    solver_shards(&train_dir, 3, 900);
+    solver_shards(&test_dir, 1, 300);
+    let data = SolverData::from_path(&train_dir).unwrap();
+    assert_eq!((data.shards.len(), data.markers.len(), data.skeleton.len()), (3, 26, 14));
+    let config = SolverTrainConfig {
+        batch: 64,
+        steps: 200,
+        learning_rate: 3e-3,
+        warmup_steps: 10,
+        validate_every: 50,
+        channels: 8,
+        global: 16,
+        validation_frames: 256,
+        ..SolverTrainConfig::default()
+    };
+    let checkpoints = Checkpoints { dir: dir.path().join("run"), resume: false };
+    let (solver, report) = train_solver(&data, &config, Some(&checkpoints), &mut |_| {}).unwrap();
+    eprintln!("validation JPE {:?}, JOE {:?}", report.validation_jpe_mm, report.validation_joe_deg);
+    let jpe = &report.validation_jpe_mm;
+    assert!(jpe.last().unwrap().1 < 0.5 * jpe[0].1, "validation JPE falls: {jpe:?}");
+    assert!(report.training_loss.last().unwrap().1 < report.training_loss[0].1);
+
+    // Held-out shard, solved as `locap solve` solves: better than the untrained network.
+    let test = SolverData::from_path(&test_dir).unwrap();
+    let untrained =
+        train_solver(&data, &SolverTrainConfig { steps: 1, ..config.clone() }, None, &mut |_| {}).unwrap().0;
+    let scores =
+        evaluate(&[("trained".into(), &solver), ("untrained".into(), &untrained)], &test.shards, None).unwrap();
+    eprintln!("{}", locap_nn::solver::eval::table("body", &scores));
+    assert!(scores[0].jpe_mm < 0.5 * scores[1].jpe_mm && scores[0].joe_deg < scores[1].joe_deg, "{scores:?}");
+    assert!(scores[0].ompe_mm.unwrap() > 0.0);
+
+    // The model file round-trips; a solved take keeps its frame count and rate.
+    let device = burn::prelude::Device::default();
+    let loaded = Solver::from_bytes(&solver.to_bytes().unwrap(), &device).unwrap();
+    assert_eq!(loaded.meta, solver.meta);
+    let take = &test.shards[0].observed;
+    let (a, cleaned) = solver.solve(take, None).unwrap();
+    let (b, _) = loaded.solve(take, None).unwrap();
+    assert_eq!(a, b);
+    assert_eq!((a.frame_count(), a.frame_rate_hz()), (take.frame_count(), take.frame_rate_hz()));
+    assert_eq!(cleaned.filled.take.missing_count(), 0);
+
+    // Another marker set, or not a model: clear errors.
+    let mut names = take.markers().to_vec();
+    names[3].label = "XYZ".into();
+    let mut other = take.clone();
+    other.set_markers(names).unwrap();
+    let e = solver.solve(&other, None).unwrap_err().to_string();
+    assert!(e.contains("another marker set") && e.contains("RBWT"), "{e}");
+    let e = Solver::from_bytes(b"LOCAPNN\0 a refiner, not a solver", &device).unwrap_err().to_string();
+    assert!(e.contains("LOCAPSV"), "{e}");
+    let mut bytes = solver.to_bytes().unwrap();
+    bytes.truncate(bytes.len() - 100);
+    assert!(Solver::from_bytes(&bytes, &device).is_err());
+
+    // Resume continues the run; the MLP baseline trains in the same harness.
+    let resumed = Checkpoints { resume: true, ..checkpoints };
+    let (_, r2) =
+        train_solver(&data, &SolverTrainConfig { steps: 202, ..config.clone() }, Some(&resumed), &mut |_| {}).unwrap();
+    assert_eq!((r2.steps, r2.steps_this_run), (202, 2));
+    let mlp = SolverTrainConfig { variant: Variant::Mlp, steps: 20, ..config };
+    let (m, _) = train_solver(&data, &mlp, None, &mut |_| {}).unwrap();
+    assert_eq!(m.meta.architecture.variant, Variant::Mlp);
+}

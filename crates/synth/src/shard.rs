@@ -8,7 +8,7 @@
 //! | 8 | magic `LOCAPSHD` |
 //! | 4 | `u32` format version (1) |
 //! | 4 | `u32` header length `H` in bytes |
-//! | `H` | UTF-8 JSON [`ShardHeader`]: frame count, frame rate, marker and joint names, record layout |
+//! | `H` | UTF-8 JSON [`ShardHeader`]: frame count, frame rate, marker and joint names, record layout, skeleton |
 //! | 0-3 | zero padding so the frame records start at a multiple of 4 bytes |
 //! | `T x R x 4` | `T` frame records of `R = 7M + 7J` `f32` each |
 //!
@@ -21,11 +21,15 @@
 //! 5. `joint_rotations[J][4]`: *local* joint rotations as unit quaternions `(x, y, z, w)`
 //!    (the root's relative to the motion's world frame, Y-up for CMU).
 //!
+//! The header's optional `skeleton` (joint names, parents, subject-scaled rest offsets in mm,
+//! in the motion's frame) lets a solver run forward kinematics on the rotations; shards written
+//! before it existed read with `skeleton: None`.
+//!
 //! Fixed-size records make the file seekable (`offset = data_start + frame * R * 4`) and
 //! memory-mappable; [`ShardReader`] streams it in chunks from any `Read`.
 
 use crate::synthesize::LabFrame;
-use locap_core::{Motion, Take};
+use locap_core::{Motion, Skeleton, Take};
 use serde::{Deserialize, Serialize};
 use std::io::{Read, Write};
 
@@ -71,6 +75,10 @@ pub struct ShardHeader {
     pub record: Vec<String>,
     /// Lab frame of marker and joint positions.
     pub lab: LabFrame,
+    /// The (subject-scaled) skeleton of the joints, in [`ShardHeader::joints`] order; `None`
+    /// without motion and in shards written before this field existed.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub skeleton: Option<Skeleton>,
 }
 
 impl ShardHeader {
@@ -117,6 +125,7 @@ pub fn write_shard(
         .map(String::from)
         .to_vec(),
         lab,
+        skeleton: motion.map(|mo| mo.skeleton.clone()),
     };
     let json = serde_json::to_vec(&header).map_err(|e| ShardError::Header(e.to_string()))?;
     w.write_all(MAGIC)?;
@@ -195,6 +204,13 @@ impl<R: Read> ShardReader<R> {
         let mut json = vec![0u8; len as usize];
         reader.read_exact(&mut json)?;
         let header: ShardHeader = serde_json::from_slice(&json).map_err(|e| ShardError::Header(e.to_string()))?;
+        if let Some(sk) = &header.skeleton {
+            // Deserialising bypasses the skeleton's checks: run them, and match the joints.
+            Skeleton::new(sk.joints().to_vec()).map_err(|e| ShardError::Header(format!("skeleton: {e}")))?;
+            if sk.joints().iter().map(|j| &j.name).ne(header.joints.iter()) {
+                return Err(ShardError::Header("the skeleton's joints are not the header's joints".into()));
+            }
+        }
         let mut pad = [0u8; 3];
         reader.read_exact(&mut pad[..(4 - len as usize % 4) % 4])?;
         Ok(ShardReader { reader, header, next_frame: 0 })
@@ -275,5 +291,40 @@ mod tests {
             write_shard(&mut Vec::new(), &short, &observed, None, LabFrame::Motion),
             Err(ShardError::Shape(_))
         ));
+    }
+
+    /// The skeleton travels in the header (checked on reading); a header without it (an older
+    /// shard) still reads.
+    #[test]
+    fn skeleton_in_the_header() {
+        use crate::test_util::joint;
+        let (clean, observed) = takes();
+        let sk =
+            Skeleton::new(vec![joint("root", None, [0.0; 3]), joint("knee", Some(0), [0.0, -400.0, 0.0])]).unwrap();
+        let rot = vec![locap_core::Quat::identity(); 2 * 5];
+        let motion = Motion::new(sk.clone(), rot, vec![Vec3::new(1.0, 2.0, 3.0); 5], 100.0).unwrap();
+        let mut bytes = Vec::new();
+        write_shard(&mut bytes, &clean, &observed, Some(&motion), LabFrame::ZUpFromYUp).unwrap();
+        let reader = ShardReader::new(bytes.as_slice()).unwrap();
+        assert_eq!(reader.header().skeleton.as_ref(), Some(&sk));
+        assert_eq!(reader.header().record_len(), 14 + 14);
+        // An old header (no skeleton field) reads with None.
+        let header_len = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
+        let mut json: serde_json::Value = serde_json::from_slice(&bytes[16..16 + header_len]).unwrap();
+        json.as_object_mut().unwrap().remove("skeleton");
+        let old: ShardHeader = serde_json::from_value(json.clone()).unwrap();
+        assert_eq!(old.skeleton, None);
+        // A skeleton whose parents are out of order is refused.
+        json["skeleton"] = serde_json::json!({"joints": [
+            {"name": "root", "parent": 1, "offset_mm": [0.0, 0.0, 0.0], "rotation_order": "ZXY", "is_end_site": false},
+            {"name": "knee", "parent": null, "offset_mm": [0.0, 0.0, 0.0], "rotation_order": "ZXY", "is_end_site": false}]});
+        let text = serde_json::to_vec(&json).unwrap();
+        let mut bad = Vec::new();
+        bad.extend_from_slice(MAGIC);
+        bad.extend_from_slice(&VERSION.to_le_bytes());
+        bad.extend_from_slice(&(text.len() as u32).to_le_bytes());
+        bad.extend_from_slice(&text);
+        bad.extend_from_slice(&[0u8; 3][..(4 - text.len() % 4) % 4]);
+        assert!(matches!(ShardReader::new(bad.as_slice()), Err(ShardError::Header(_))));
     }
 }

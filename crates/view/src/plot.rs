@@ -78,6 +78,15 @@ pub enum Chart {
         /// Method name and mean error in mm per bucket (`None` without samples).
         methods: Vec<(String, Vec<Option<f64>>)>,
     },
+    /// One horizontal bar per item (e.g. a solver's error per joint).
+    Bars {
+        /// Title.
+        title: String,
+        /// Label of the value axis (with its unit).
+        x_desc: String,
+        /// Item name and value.
+        items: Vec<(String, f64)>,
+    },
     /// Training loss against step, one line per series (training, validation, ...).
     LossCurve {
         /// Title.
@@ -191,7 +200,9 @@ impl Chart {
     /// Size in pixels that fits the chart's content.
     pub fn default_size(&self) -> (u32, u32) {
         match self {
-            Chart::OcclusionRates { markers, .. } => (800, 90 + 16 * markers.len() as u32),
+            Chart::OcclusionRates { markers: items, .. } | Chart::Bars { items, .. } => {
+                (800, 90 + 16 * items.len() as u32)
+            }
             _ => (800, 480),
         }
     }
@@ -273,43 +284,8 @@ impl Chart {
                     }))
                     .map_err(chart_error)?;
             }
-            Chart::OcclusionRates { title, markers } => {
-                let top = markers.iter().map(|(_, p)| *p).fold(0.0, f64::max).max(1.0) * 1.08;
-                let mut chart = ChartBuilder::on(root)
-                    .caption(title, ("sans-serif", 20))
-                    .margin(12)
-                    .x_label_area_size(40)
-                    .y_label_area_size(110)
-                    .build_cartesian_2d(0.0..top, segments(markers.len()))
-                    .map_err(chart_error)?;
-                chart
-                    .configure_mesh()
-                    .disable_y_mesh()
-                    .x_desc("frames missing, %")
-                    .light_line_style(TRANSPARENT)
-                    .y_labels(markers.len())
-                    // The y axis grows upwards; the first marker goes on top.
-                    .y_label_formatter(&|v| match v {
-                        SegmentValue::CenterOf(i) => markers
-                            .get(markers.len() - 1 - i.min(&(markers.len() - 1)))
-                            .map(|m| m.0.clone())
-                            .unwrap_or_default(),
-                        _ => String::new(),
-                    })
-                    .label_style(("sans-serif", 11))
-                    .draw()
-                    .map_err(chart_error)?;
-                chart
-                    .draw_series(markers.iter().rev().enumerate().map(|(i, (_, p))| {
-                        let mut bar = Rectangle::new(
-                            [(0.0, SegmentValue::Exact(i)), (*p, SegmentValue::Exact(i + 1))],
-                            PALETTE[3].filled(),
-                        );
-                        bar.set_margin(2, 2, 0, 0);
-                        bar
-                    }))
-                    .map_err(chart_error)?;
-            }
+            Chart::OcclusionRates { title, markers } => bars(root, title, "frames missing, %", markers, PALETTE[3])?,
+            Chart::Bars { title, x_desc, items } => bars(root, title, x_desc, items, PALETTE[0])?,
             Chart::FillError { title, buckets, methods } => {
                 // Errors span three orders of magnitude (1-frame gaps vs 10-second gaps): log scale.
                 let values = || methods.iter().flat_map(|(_, e)| e.iter().flatten().copied()).filter(|e| *e > 0.0);
@@ -388,6 +364,49 @@ impl Chart {
         }
         Ok(())
     }
+}
+
+/// Horizontal bars, the first item on top.
+fn bars<DB: DrawingBackend>(
+    root: &DrawingArea<DB, Shift>,
+    title: &str,
+    x_desc: &str,
+    markers: &[(String, f64)],
+    colour: RGBColor,
+) -> Result<(), ViewError> {
+    let top = markers.iter().map(|(_, p)| *p).fold(0.0, f64::max).max(1.0) * 1.08;
+    let mut chart = ChartBuilder::on(root)
+        .caption(title, ("sans-serif", 20))
+        .margin(12)
+        .x_label_area_size(40)
+        .y_label_area_size(110)
+        .build_cartesian_2d(0.0..top, segments(markers.len()))
+        .map_err(chart_error)?;
+    chart
+        .configure_mesh()
+        .disable_y_mesh()
+        .x_desc(x_desc)
+        .light_line_style(TRANSPARENT)
+        .y_labels(markers.len())
+        // The y axis grows upwards; the first marker goes on top.
+        .y_label_formatter(&|v| match v {
+            SegmentValue::CenterOf(i) => {
+                markers.get(markers.len() - 1 - i.min(&(markers.len() - 1))).map(|m| m.0.clone()).unwrap_or_default()
+            }
+            _ => String::new(),
+        })
+        .label_style(("sans-serif", 11))
+        .draw()
+        .map_err(chart_error)?;
+    chart
+        .draw_series(markers.iter().rev().enumerate().map(|(i, (_, p))| {
+            let mut bar =
+                Rectangle::new([(0.0, SegmentValue::Exact(i)), (*p, SegmentValue::Exact(i + 1))], colour.filled());
+            bar.set_margin(2, 2, 0, 0);
+            bar
+        }))
+        .map_err(chart_error)?;
+    Ok(())
 }
 
 fn draw_legend<'a, DB: DrawingBackend + 'a, CT: CoordTranslate>(
@@ -502,5 +521,17 @@ mod tests {
         let svg = String::from_utf8(chart.render(Format::Svg, (800, 480)).unwrap()).unwrap();
         assert!(svg.contains("\ntraining\n") && svg.contains("\nvalidation\n") && svg.contains("<polyline"), "{svg}");
         assert!(Chart::loss_curve(vec![("x".into(), vec![])], "l", "t").unwrap_err().to_string().contains("no points"));
+    }
+
+    #[test]
+    fn bars_name_their_axis() {
+        let chart = Chart::Bars {
+            title: "JPE per joint".into(),
+            x_desc: "JPE, mm".into(),
+            items: vec![("root".into(), 12.5), ("head".into(), 30.0)],
+        };
+        assert_eq!(chart.default_size(), (800, 90 + 32));
+        let svg = String::from_utf8(chart.render(Format::Svg, chart.default_size()).unwrap()).unwrap();
+        assert!(svg.contains("\nJPE, mm\n") && svg.contains("\nhead\n") && !svg.contains("missing"), "{svg}");
     }
 }

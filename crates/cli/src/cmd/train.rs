@@ -24,6 +24,8 @@ pub struct Args {
 enum What {
     /// The gap-fill refiner: EDM's fill corrected by a graph-convolution + biLSTM network.
     Fill(FillArgs),
+    /// The motion solver: a heterogeneous marker/joint graph network (or a baseline).
+    Solve(super::train_solve::SolveArgs),
 }
 
 /// Arguments of `locap train fill`.
@@ -105,10 +107,11 @@ pub struct FillArgs {
 pub fn run(args: Args) -> Result<ExitCode> {
     match args.what {
         What::Fill(a) => fill(a),
+        What::Solve(a) => super::train_solve::run(a),
     }
 }
 
-fn with_suffix(path: &Path, suffix: &str) -> PathBuf {
+pub(crate) fn with_suffix(path: &Path, suffix: &str) -> PathBuf {
     let mut name = path.file_name().map(|n| n.to_os_string()).unwrap_or_default();
     name.push(suffix);
     path.with_file_name(name)

@@ -1,0 +1,207 @@
+//! `locap eval`: the motion-solver comparison of LocalMoCap section 4 (Table 1) on held-out
+//! synthetic shards: JOE (degrees), JPE (mm) and OMPE (mm, occluded samples only) for every
+//! solver model given (graph network, ablations, MLP baseline), all on the same cleaning, each
+//! take solved as `locap solve` solves a real one. Prints the table, writes it as JSON with the
+//! per-joint and per-gap-length errors, and draws the error by gap length and the error per
+//! joint (`--plots DIR`, SVG and PNG).
+
+use anyhow::{Context, Result, bail};
+use clap::Parser;
+use locap_nn::Refiner;
+use locap_nn::solver::eval::{
+    GAP_BINS, MethodScores, MotionComparison, compare_motions, evaluate, gap_bin_label, table,
+};
+use locap_nn::solver::{Solver, SolverData};
+use locap_view::plot::{Chart, Format};
+use serde::Serialize;
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+
+/// Arguments of `locap eval`.
+#[derive(Parser, Debug)]
+#[command(after_help = "Example:\n  locap synth --motion ../shared/data/cmu-asfamc/02 --augment \
+                        ../shared/data/gap-stats/real-gap-statistics.json --format shard -o test/\n  \
+                        locap eval --data test/ --models graph.locapsv mlp.locapsv --json table1.json --plots plots/")]
+pub struct Args {
+    /// Held-out `.shard` files from `locap synth` (with motion), or folders of them.
+    #[arg(long, value_name = "DIR", help_heading = "Input")]
+    data: PathBuf,
+    /// Solver models to compare (from `locap train solve`); named by file stem.
+    #[arg(long, required = true, num_args = 1.., value_name = "MODEL", help_heading = "Input")]
+    models: Vec<PathBuf>,
+    /// Gap-fill refiner for the cleaning (default: EDM alone).
+    #[arg(long, value_name = "MODEL", help_heading = "Input")]
+    refiner: Option<PathBuf>,
+    /// Real labeled takes (C3D) to solve and compare with a reference solution of the same
+    /// frames (`--reference`, same order): a real, not synthetic, accuracy figure.
+    #[arg(long, num_args = 1.., value_name = "C3D", help_heading = "Real takes")]
+    real: Vec<PathBuf>,
+    /// Reference motion of each `--real` take: AMC (with the ASF next to it) or BVH, the same
+    /// skeleton definition as the models' (joints matched by name).
+    #[arg(long, num_args = 1.., value_name = "MOTION", help_heading = "Real takes")]
+    reference: Vec<PathBuf>,
+    /// Write the results as JSON.
+    #[arg(long, value_name = "FILE", help_heading = "Output")]
+    json: Option<PathBuf>,
+    /// Folder for the charts (error by gap length, error per joint; SVG and PNG).
+    #[arg(long, value_name = "DIR", help_heading = "Output")]
+    plots: Option<PathBuf>,
+}
+
+/// The JSON report.
+#[derive(Debug, Serialize)]
+struct Report {
+    data: String,
+    takes: usize,
+    frames: usize,
+    refiner: Option<String>,
+    joints: Vec<String>,
+    gap_bins: Vec<String>,
+    methods: Vec<MethodScores>,
+    real: Vec<RealRow>,
+    region: &'static str,
+}
+
+/// One real take solved by one model, against its reference.
+#[derive(Debug, Serialize)]
+struct RealRow {
+    take: String,
+    reference: String,
+    model: String,
+    comparison: MotionComparison,
+}
+
+fn stem(p: &Path) -> String {
+    p.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| p.display().to_string())
+}
+
+fn write_chart(chart: &Chart, path_stem: &Path) -> Result<()> {
+    for (format, ext) in [(Format::Svg, "svg"), (Format::Png, "png")] {
+        let path = path_stem.with_extension(ext);
+        let bytes = chart.render(format, chart.default_size())?;
+        locap_io::atomic::write_atomically(&path, |w| Ok(w.write_all(&bytes)?))
+            .with_context(|| format!("{}", path.display()))?;
+    }
+    Ok(())
+}
+
+/// Runs `locap eval`.
+pub fn run(args: Args) -> Result<ExitCode> {
+    let device = Default::default();
+    let mut solvers = Vec::new();
+    for path in &args.models {
+        let bytes = std::fs::read(path).with_context(|| format!("{}: cannot read the model", path.display()))?;
+        solvers.push((stem(path), Solver::from_bytes(&bytes, &device).with_context(|| format!("{}", path.display()))?));
+    }
+    let names: Vec<&String> = solvers.iter().map(|(n, _)| n).collect();
+    if (1..names.len()).any(|i| names[..i].contains(&names[i])) {
+        bail!("two models have the same file name; the table names methods by file stem");
+    }
+    let refiner = match &args.refiner {
+        Some(p) => {
+            let bytes = std::fs::read(p).with_context(|| format!("{}: cannot read the model", p.display()))?;
+            Some(Refiner::from_bytes(&bytes, &device).with_context(|| format!("{}", p.display()))?)
+        }
+        None => None,
+    };
+    if args.real.len() != args.reference.len() {
+        bail!(
+            "--real has {} takes but --reference {} motions; give one reference per take",
+            args.real.len(),
+            args.reference.len()
+        );
+    }
+    let data = SolverData::from_path(&args.data)?;
+    eprintln!("evaluating {} models on {} takes, {} frames", solvers.len(), data.shards.len(), data.frames());
+    let refs: Vec<(String, &Solver)> = solvers.iter().map(|(n, s)| (n.clone(), s)).collect();
+    let scores = evaluate(&refs, &data.shards, refiner.as_ref())?;
+    let joints: Vec<String> = data.skeleton.joints().iter().map(|j| j.name.clone()).collect();
+    let mut text = format!(
+        "{} held-out takes, {} frames, cleaning: {}\n",
+        data.shards.len(),
+        data.frames(),
+        if refiner.is_some() { "EDM + refiner" } else { "EDM" }
+    );
+    // A waist frame solves a body; a wrist frame a hand.
+    let region = if solvers[0].1.meta.frame.name.contains("wrist") { "hand" } else { "body" };
+    text.push_str(&table(region, &scores));
+    let real = real_rows(&args, &solvers, refiner.as_ref())?;
+    if !real.is_empty() {
+        text.push_str(&format!(
+            "\nreal takes vs their reference solution\n{:<24} {:<16} {:>8} {:>10} {:>14} {:>9} {:>9}\n",
+            "take", "model", "frames", "JPE (mm)", "JPE root-aln", "root (mm)", "JOE (deg)"
+        ));
+        for r in &real {
+            let c = &r.comparison;
+            text.push_str(&format!(
+                "{:<24} {:<16} {:>8} {:>10.1} {:>14.1} {:>9.1} {:>9.2}\n",
+                stem(Path::new(&r.take)),
+                r.model,
+                c.frames,
+                c.jpe_mm,
+                c.jpe_root_aligned_mm,
+                c.root_mm,
+                c.joe_deg
+            ));
+        }
+    }
+    crate::emit(&text)?;
+    if let Some(path) = &args.json {
+        let report = Report {
+            data: args.data.display().to_string(),
+            takes: data.shards.len(),
+            frames: data.frames(),
+            refiner: args.refiner.as_ref().map(|p| p.display().to_string()),
+            joints: joints.clone(),
+            gap_bins: (0..GAP_BINS.len()).map(gap_bin_label).collect(),
+            methods: scores.clone(),
+            real,
+            region,
+        };
+        crate::inputs::create_parent(path)?;
+        crate::inputs::write_json(path, &report)?;
+    }
+    if let Some(dir) = &args.plots {
+        std::fs::create_dir_all(dir).with_context(|| format!("{}: cannot create folder", dir.display()))?;
+        let buckets: Vec<String> = (0..GAP_BINS.len()).map(gap_bin_label).collect();
+        let mut methods: Vec<(String, Vec<Option<f64>>)> =
+            scores.iter().map(|s| (format!("{} JPE", s.name), s.jpe_by_gap_mm.clone())).collect();
+        if let Some(first) = scores.first() {
+            methods.push(("OMPE (cleaning)".into(), first.ompe_by_gap_mm.clone()));
+        }
+        let chart = Chart::FillError {
+            title: "error by gap length (JPE: longest gap open in the frame)".into(),
+            buckets,
+            methods,
+        };
+        write_chart(&chart, &dir.join("error-by-gap-length"))?;
+        for s in &scores {
+            let items = joints.iter().cloned().zip(s.jpe_per_joint_mm.iter().copied()).collect();
+            let chart = Chart::Bars { title: format!("{}: JPE per joint", s.name), x_desc: "JPE, mm".into(), items };
+            write_chart(&chart, &dir.join(format!("{}-jpe-per-joint", s.name)))?;
+        }
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// Every `--real` take solved by every model and compared with its reference.
+fn real_rows(args: &Args, solvers: &[(String, Solver)], refiner: Option<&Refiner>) -> Result<Vec<RealRow>> {
+    let options = crate::inputs::MotionOptions { asf: None, bvh_mm_per_unit: 25.4 / 0.45, amc_rate_hz: 120.0 };
+    let mut rows = Vec::new();
+    for (take_path, reference_path) in args.real.iter().zip(&args.reference) {
+        let take = crate::inputs::read_take(take_path)?;
+        let reference = crate::inputs::read_motion(reference_path, &options)?;
+        for (name, solver) in solvers {
+            let (motion, _) = solver.solve(&take, refiner).with_context(|| format!("{}", take_path.display()))?;
+            let comparison = compare_motions(&motion, &reference, &solver.meta.rotating)
+                .with_context(|| format!("{} vs {}", take_path.display(), reference_path.display()))?;
+            rows.push(RealRow {
+                take: take_path.display().to_string(),
+                reference: reference_path.display().to_string(),
+                model: name.clone(),
+                comparison,
+            });
+        }
+    }
+    Ok(rows)
+}

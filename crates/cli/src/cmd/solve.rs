@@ -1,0 +1,136 @@
+//! `locap solve`: the whole LocalMoCap pipeline on raw labeled takes (sections 3.1-3.2):
+//! swapped labels and outliers repaired, gaps filled (EDM, or EDM + the learned refiner with
+//! `--refiner`), then the motion solver turns every frame into joint rotations and the root
+//! position, with bone lengths fitted to the subject (offsets averaged over the take). Writes
+//! BVH at the take's own frame rate with exactly its frame count, in the skeleton's Y-up motion
+//! frame (the lab frame the model was trained for is undone), lengths in centimetres.
+//!
+//! Without `--model`, the solver shipped with locap is used (`models/solver-cmu41.locapsv`:
+//! the CMU 41-marker set on the CMU ASF skeleton, built into the binary).
+
+use crate::inputs;
+use anyhow::{Context, Result, bail};
+use clap::Parser;
+use locap_core::LengthUnit;
+use locap_nn::Refiner;
+use locap_nn::solver::Solver;
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+
+/// The default solver, built into the binary (see `models/README.md`).
+pub static DEFAULT_MODEL: &[u8] =
+    include_bytes!(concat!(env!("CARGO_MANIFEST_DIR"), "/../../models/solver-cmu41.locapsv"));
+
+/// Arguments of `locap solve`.
+#[derive(Parser, Debug)]
+#[command(after_help = "Examples:\n  locap solve ../shared/data/cmu-c3d/85_02.c3d -o out.bvh\n  \
+                        locap solve takes/ -o solved/ --markers-out cleaned/")]
+pub struct Args {
+    /// Labeled C3D or TRC takes, or folders searched recursively.
+    #[arg(required = true, value_name = "FILE")]
+    inputs: Vec<PathBuf>,
+    /// Output BVH file (one input) or folder (several inputs or a folder).
+    #[arg(short, long, value_name = "PATH", help_heading = "Output")]
+    output: PathBuf,
+    /// Also write the cleaned markers as C3D: a file (one input) or a folder.
+    #[arg(long, value_name = "PATH", help_heading = "Output")]
+    markers_out: Option<PathBuf>,
+    /// Solver model (from `locap train solve`). Default: the built-in CMU 41-marker solver.
+    #[arg(long, value_name = "MODEL", help_heading = "Models")]
+    model: Option<PathBuf>,
+    /// Gap-fill refiner model (from `locap train fill`); without it, gaps are filled by EDM.
+    #[arg(long, value_name = "MODEL", help_heading = "Models")]
+    refiner: Option<PathBuf>,
+}
+
+/// What one take gave.
+struct Solved {
+    target: PathBuf,
+    frames: usize,
+    rate_hz: f64,
+    seconds: f64,
+}
+
+/// Where each input's output goes: `output` itself for one named file, else a mirror of the
+/// inputs under the folder `output` with `extension`.
+fn outputs(given: &[PathBuf], files: &[PathBuf], output: &Path, extension: &str) -> Result<Vec<PathBuf>> {
+    if files.len() == 1 && given.len() == 1 && !given[0].is_dir() && !output.is_dir() {
+        return Ok(vec![output.to_path_buf()]);
+    }
+    std::fs::create_dir_all(output).with_context(|| format!("{}: cannot create output folder", output.display()))?;
+    Ok(inputs::output_paths(files, output, Some(extension)))
+}
+
+fn read_model(path: &Path) -> Result<Vec<u8>> {
+    std::fs::read(path).with_context(|| format!("{}: cannot read the model", path.display()))
+}
+
+/// Runs `locap solve`.
+pub fn run(args: Args) -> Result<ExitCode> {
+    let model = match &args.model {
+        Some(p) => read_model(p)?,
+        None => DEFAULT_MODEL.to_vec(),
+    };
+    let refiner = args.refiner.as_deref().map(read_model).transpose()?;
+    // Check the models once up front, so a bad file is one clear error and not one per take.
+    let device = Default::default();
+    let probe = Solver::from_bytes(&model, &device)
+        .with_context(|| args.model.as_ref().map_or("the built-in solver".into(), |p| p.display().to_string()))?;
+    if let (Some(bytes), Some(path)) = (&refiner, &args.refiner) {
+        Refiner::from_bytes(bytes, &device).with_context(|| format!("{}", path.display()))?;
+    }
+    drop(probe);
+    let files = inputs::expand(&args.inputs, &["c3d", "trc"])?;
+    let targets = outputs(&args.inputs, &files, &args.output, "bvh")?;
+    let marker_targets = match &args.markers_out {
+        Some(p) => Some(outputs(&args.inputs, &files, p, "c3d")?),
+        None => None,
+    };
+    let started = std::time::Instant::now();
+    let (done, failed) = crate::run_takes(&files, "solving", |i, input| {
+        let marker_target = marker_targets.as_ref().map(|t| t[i].as_path());
+        for out in std::iter::once(targets[i].as_path()).chain(marker_target) {
+            if out == input {
+                bail!("{}: input and output are the same file; locap never overwrites its input", input.display());
+            }
+        }
+        let take = inputs::read_take(input)?;
+        let t0 = std::time::Instant::now();
+        // One solver per job: a burn module is not shared between threads.
+        let device = Default::default();
+        let solver = Solver::from_bytes(&model, &device)?;
+        let refiner = refiner.as_deref().map(|b| Refiner::from_bytes(b, &device)).transpose()?;
+        let (motion, cleaned) = solver.solve(&take, refiner.as_ref())?;
+        let seconds = t0.elapsed().as_secs_f64();
+        inputs::create_parent(&targets[i])?;
+        locap_io::bvh::write_bvh_path(&motion, LengthUnit::Centimetre, &targets[i])?;
+        if let Some(path) = marker_target {
+            inputs::create_parent(path)?;
+            locap_io::c3d::write_path(&locap_io::c3d::C3dFile::from_take(&cleaned.filled.take)?, path)?;
+        }
+        Ok(Solved {
+            target: targets[i].clone(),
+            frames: motion.frame_count(),
+            rate_hz: motion.frame_rate_hz(),
+            seconds,
+        })
+    });
+    let total: usize = done.iter().map(|(_, s)| s.frames).sum();
+    let mut text = String::new();
+    for (path, s) in &done {
+        text.push_str(&format!(
+            "{}: {} frames at {} Hz -> {} ({:.0} frames/s)\n",
+            path.display(),
+            s.frames,
+            s.rate_hz,
+            s.target.display(),
+            s.frames as f64 / s.seconds.max(1e-9)
+        ));
+    }
+    if done.len() > 1 {
+        let seconds = started.elapsed().as_secs_f64();
+        text.push_str(&format!("{} takes, {total} frames in {seconds:.1} s\n", done.len()));
+    }
+    crate::emit(&text)?;
+    Ok(if failed > 0 { ExitCode::from(1) } else { ExitCode::SUCCESS })
+}

@@ -1,0 +1,115 @@
+//! `locap solve` and `locap eval` as a user runs them, with the shipped solver.
+
+mod common;
+
+use common::{locap, repo, shared_data};
+use std::process::Command;
+
+/// A real CMU take solved to BVH: our reader and a third-party Python BVH parser (`bvh` from
+/// PyPI, installed by `.ci/run` into `.ci/pydeps`) read back the take's frame count and rate;
+/// the cleaned markers come out complete.
+#[test]
+fn solve_writes_bvh_with_the_takes_frames_and_rate() {
+    let Some(data) = shared_data() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let (bvh, clean) = (dir.path().join("02_01.bvh"), dir.path().join("02_01.clean.c3d"));
+    let take = data.join("cmu-c3d/02_01.c3d");
+    let out = locap().arg("solve").arg(&take).arg("-o").arg(&bvh).arg("--markers-out").arg(&clean).output().unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let text = String::from_utf8(out.stdout).unwrap();
+    assert!(text.contains("343 frames at 120 Hz"), "{text}");
+    let motion = locap_io::bvh::read_bvh_path(&bvh, locap_core::LengthUnit::Centimetre).unwrap();
+    assert_eq!(motion.frame_count(), 343);
+    assert!((motion.frame_rate_hz() - 120.0).abs() < 1e-6);
+    assert_eq!(motion.skeleton.index_of("ltibia").map(|i| motion.skeleton.joints()[i].parent), Some(Some(2)));
+    let cleaned = locap_io::c3d::read_path(&clean).unwrap().to_take().unwrap();
+    assert_eq!((cleaned.frame_count(), cleaned.missing_count()), (343, 0));
+
+    let pydeps = repo().join(".ci/pydeps");
+    let script = "import sys; from bvh import Bvh; m = Bvh(open(sys.argv[1]).read()); \
+                  assert m.nframes == 343, m.nframes; assert abs(m.frame_time - 1 / 120) < 1e-9, m.frame_time; \
+                  assert len(m.get_joints_names()) == 31; print('bvh ok')";
+    match Command::new("python3").arg("-c").arg(script).arg(&bvh).env("PYTHONPATH", &pydeps).output() {
+        Ok(out) if out.status.success() => {}
+        Ok(out) if String::from_utf8_lossy(&out.stderr).contains("No module named") => {
+            assert!(std::env::var_os("CI").is_none(), "CI must install bvh into .ci/pydeps");
+            eprintln!("skipping the Python BVH check: bvh not importable from {}", pydeps.display());
+        }
+        Ok(out) => panic!("the Python BVH parser rejects the file: {}", String::from_utf8_lossy(&out.stderr)),
+        Err(e) => eprintln!("skipping the Python BVH check: no python3 ({e})"),
+    }
+
+    // Not a model, or a take of another marker set: clear errors, nothing written.
+    let bad = dir.path().join("bad.locapsv");
+    std::fs::write(&bad, b"not a model").unwrap();
+    let out = locap()
+        .arg("solve")
+        .arg(&take)
+        .arg("-o")
+        .arg(dir.path().join("x.bvh"))
+        .arg("--model")
+        .arg(&bad)
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("LOCAPSV"), "{}", String::from_utf8_lossy(&out.stderr));
+    let other = data.join("numediart-c3d/03_rolling.c3d");
+    let out = locap().arg("solve").arg(&other).arg("-o").arg(dir.path().join("y.bvh")).output().unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("another marker set"));
+    assert!(!dir.path().join("x.bvh").exists() && !dir.path().join("y.bvh").exists());
+}
+
+/// `locap eval` on a held-out synthetic take: the Table-1 rows, JSON, charts, and the real-take
+/// comparison with CMU's own solution.
+#[test]
+fn eval_prints_table_one() {
+    let Some(data) = shared_data() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let shards = dir.path().join("test");
+    let out = locap()
+        .args(["synth", "--format", "shard", "--p-occ", "0.05", "--seed", "3", "--motion"])
+        .arg(data.join("cmu-asfamc/02/02_01.amc"))
+        .arg("--augment")
+        .arg(data.join("gap-stats/real-gap-statistics.json"))
+        .arg("-o")
+        .arg(&shards)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let (json, plots) = (dir.path().join("t1.json"), dir.path().join("plots"));
+    let eval = || {
+        let mut c = locap();
+        c.arg("eval").arg("--data").arg(&shards).arg("--models").arg(repo().join("models/solver-cmu41.locapsv"));
+        c.arg("--real").arg(data.join("cmu-c3d/02_01.c3d"));
+        c
+    };
+    let out = eval()
+        .arg("--reference")
+        .arg(data.join("cmu-asfamc/02/02_01.amc"))
+        .arg("--json")
+        .arg(&json)
+        .arg("--plots")
+        .arg(&plots)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let text = String::from_utf8(out.stdout).unwrap();
+    assert!(text.contains("JOE (deg)") && text.contains("JPE (mm)") && text.contains("OMPE (mm)"), "{text}");
+    let report: serde_json::Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
+    let method = &report["methods"][0];
+    assert_eq!(method["name"], "solver-cmu41");
+    // The shipped solver on an unseen subject: centimetres, not decimetres, of joint error.
+    let (jpe, joe) = (method["jpe_mm"].as_f64().unwrap(), method["joe_deg"].as_f64().unwrap());
+    assert!(jpe > 1.0 && jpe < 80.0 && joe > 0.5 && joe < 30.0, "JPE {jpe} mm, JOE {joe} deg");
+    let real = &report["real"][0]["comparison"];
+    assert_eq!(real["frames"], 343);
+    assert!(real["jpe_mm"].as_f64().unwrap() < 100.0, "{real}");
+    for name in ["error-by-gap-length.svg", "error-by-gap-length.png", "solver-cmu41-jpe-per-joint.svg"] {
+        assert!(plots.join(name).is_file(), "{name}");
+    }
+    // References must pair with takes.
+    let out = eval().output().unwrap();
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("one reference per take"));
+}

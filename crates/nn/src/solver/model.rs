@@ -1,0 +1,352 @@
+//! The solver model file and inference (LocalMoCap section 3.2).
+//!
+//! # Model file (version 1, one file, little-endian)
+//!
+//! | bytes | content |
+//! |---|---|
+//! | 8 | magic `LOCAPSV\0` |
+//! | 4 | `u32` format version (1) |
+//! | 4 | `u32` length `H` of the metadata |
+//! | `H` | UTF-8 JSON [`SolverMeta`]: markers, skeleton, graph, local frame, lab frame, input and output normalisation, architecture, training summary |
+//! | rest | the weights as a burn record (burnpack bytes) |
+//!
+//! # Inference ([`Solver::solve`])
+//!
+//! The take is cleaned ([`clean_for_solving`]: outliers, EDM or refiner fill), its markers go to
+//! the waist frame, and the network solves every frame on its own. Per frame it gives the local
+//! rotations (the root's relative to the waist frame, turned back to the motion frame with the
+//! frame's rotation), the root position (waist frame, back to the lab and then the motion
+//! frame) and bone offsets; the skeleton's offsets are the offsets averaged over the take (the
+//! paper: `S_i = mean(S_i^1 .. S_i^T)`), so bone lengths are constant and fitted to the
+//! subject. Joints that never rotate in the training data (end sites, joints without degrees of
+//! freedom) get the identity.
+
+use super::data::{Cleaned, LocalInput, clean_for_solving, lab_rotation};
+use super::net::{Gathers, JOINT_OUTPUTS, SolverArchitecture, SolverGraph, SolverNet};
+use crate::NnError;
+use crate::features::{Normalisation, input_values};
+use crate::refiner::Refiner;
+use burn::module::Module;
+use burn::prelude::*;
+use burn::store::ModuleRecord;
+use burn::tensor::Bytes;
+use locap_clean::local_frame::FrameDefinition;
+use locap_core::{Joint, Motion, Quat, Skeleton, Take, Vec3};
+use locap_synth::synthesize::LabFrame;
+use nalgebra::{Matrix3, Rotation3};
+use serde::{Deserialize, Serialize};
+
+/// Magic bytes of a solver model file.
+pub const MAGIC: &[u8; 8] = b"LOCAPSV\0";
+/// Format version written.
+pub const VERSION: u32 = 1;
+/// Largest metadata accepted.
+const MAX_META_BYTES: u32 = 64 << 20;
+
+/// Spread of the network's offset and translation outputs.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct OutputStats {
+    /// Mean bone offset per joint over the training subjects, mm.
+    pub offset_mean_mm: Vec<[f64; 3]>,
+    /// Offset spread per joint and axis, mm (floored).
+    pub offset_std_mm: Vec<[f64; 3]>,
+    /// Mean root position in the waist frame, mm.
+    pub translation_mean_mm: [f64; 3],
+    /// Its spread per axis, mm (floored).
+    pub translation_std_mm: [f64; 3],
+}
+
+/// What a solver model file carries besides its weights.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SolverMeta {
+    /// Marker labels, model order.
+    pub markers: Vec<String>,
+    /// The skeleton solved for (names, parents, rotation orders; offsets: the training mean).
+    pub skeleton: Skeleton,
+    /// The heterogeneous graph.
+    pub graph: SolverGraph,
+    /// The local frame the markers are expressed in.
+    pub frame: FrameDefinition,
+    /// How the skeleton's motion frame sits in the lab frame of the takes.
+    pub lab: LabFrame,
+    /// Input normalisation.
+    pub normalisation: Normalisation,
+    /// Output normalisation.
+    pub outputs: OutputStats,
+    /// Per joint: its rotation is solved (false: always the identity).
+    pub rotating: Vec<bool>,
+    /// Network size and variant.
+    pub architecture: SolverArchitecture,
+    /// How the model was trained (written by training).
+    #[serde(default)]
+    pub training: serde_json::Value,
+}
+
+impl SolverMeta {
+    fn check(&self) -> Result<(), NnError> {
+        let (m, j) = (self.markers.len(), self.skeleton.len());
+        let a = &self.architecture;
+        let bad = |what: String| Err(NnError::BadModel(what));
+        if m == 0 || a.markers != m || a.joints != j || a.channels == 0 || a.global == 0 {
+            return bad(format!("{m} markers and {j} joints named, architecture {a:?}"));
+        }
+        self.graph.check(m, j).map_err(NnError::BadModel)?;
+        if self.graph.parents.iter().ne(self.skeleton.joints().iter().map(|jj| &jj.parent)) {
+            return bad("the graph's parents are not the skeleton's".into());
+        }
+        let n = &self.normalisation;
+        let o = &self.outputs;
+        let positive = |v: &[[f64; 3]]| v.iter().flatten().all(|s| s.is_finite() && *s > 0.0);
+        if n.mean_mm.len() != m || n.std_mm.len() != m || !positive(&n.std_mm) {
+            return bad("input normalisation does not match the markers".into());
+        }
+        if o.offset_mean_mm.len() != j
+            || o.offset_std_mm.len() != j
+            || !positive(&o.offset_std_mm)
+            || !positive(&[o.translation_std_mm])
+            || self.rotating.len() != j
+        {
+            return bad("output statistics do not match the joints".into());
+        }
+        Ok(())
+    }
+}
+
+/// `magic, version, metadata JSON, weights` as one file.
+fn pack(json: &[u8], weights: &[u8]) -> Vec<u8> {
+    let mut out = Vec::with_capacity(16 + json.len() + weights.len());
+    out.extend_from_slice(MAGIC);
+    out.extend_from_slice(&VERSION.to_le_bytes());
+    out.extend_from_slice(&(json.len() as u32).to_le_bytes());
+    out.extend_from_slice(json);
+    out.extend_from_slice(weights);
+    out
+}
+
+/// The metadata and weight bytes of a file written by [`pack`].
+fn unpack(bytes: &[u8]) -> Result<(&[u8], &[u8]), NnError> {
+    let bad = |what: String| NnError::BadModel(what);
+    if bytes.len() < 16 || &bytes[..8] != MAGIC {
+        return Err(bad("the file does not start with LOCAPSV (not a locap solver model)".into()));
+    }
+    let word = |i: usize| u32::from_le_bytes([bytes[i], bytes[i + 1], bytes[i + 2], bytes[i + 3]]);
+    if word(8) != VERSION {
+        return Err(bad(format!("solver model format version {}; this locap reads version {VERSION}", word(8))));
+    }
+    let len = word(12);
+    if len > MAX_META_BYTES || 16 + len as usize > bytes.len() {
+        return Err(bad("the metadata length runs past the end of the file".into()));
+    }
+    Ok((&bytes[16..16 + len as usize], &bytes[16 + len as usize..]))
+}
+
+/// The network's outputs decoded, as plain values.
+#[derive(Debug, Clone)]
+pub struct Decoded {
+    /// Rotation matrices `[n][J][9]`, row-major (the root's relative to the waist frame).
+    pub rotations: Vec<f32>,
+    /// Bone offsets `[n][J][3]`, mm.
+    pub offsets_mm: Vec<f32>,
+    /// Root positions in the waist frame `[n][3]`, mm.
+    pub translation_mm: Vec<f32>,
+}
+
+/// Output statistics as tensors, to decode on a device.
+#[derive(Debug, Clone)]
+pub struct OutputTensors {
+    offset_mean: Tensor<3>,
+    offset_std: Tensor<3>,
+    translation_mean: Tensor<2>,
+    translation_std: Tensor<2>,
+}
+
+impl OutputTensors {
+    /// `stats` on `device`.
+    pub fn new(stats: &OutputStats, device: &Device) -> OutputTensors {
+        let j = stats.offset_mean_mm.len();
+        let flat = |v: &[[f64; 3]]| v.iter().flatten().map(|x| *x as f32).collect::<Vec<f32>>();
+        let t3 = |v: Vec<f32>| Tensor::<3>::from_data(TensorData::new(v, [1, j, 3]), device);
+        let t2 = |v: [f64; 3]| Tensor::<2>::from_data(TensorData::new(v.map(|x| x as f32).to_vec(), [1, 3]), device);
+        OutputTensors {
+            offset_mean: t3(flat(&stats.offset_mean_mm)),
+            offset_std: t3(flat(&stats.offset_std_mm)),
+            translation_mean: t2(stats.translation_mean_mm),
+            translation_std: t2(stats.translation_std_mm),
+        }
+    }
+
+    /// Raw outputs to rotations `[n, J, 3, 3]`, offsets `[n, J, 3]` mm and root translation
+    /// `[n, 3]` mm (see the net module for the 9-D rotation).
+    pub fn decode(&self, raw: Tensor<3>, translation: Tensor<2>) -> (Tensor<4>, Tensor<3>, Tensor<2>) {
+        let [n, j, _] = raw.dims();
+        let device = raw.device();
+        let unit = |axis: usize| {
+            let mut v = [0.0f32; 3];
+            v[axis] = 1.0;
+            Tensor::<3>::from_data(TensorData::new(v.to_vec(), [1, 1, 3]), &device).repeat_dim(0, n).repeat_dim(1, j)
+        };
+        let a = raw.clone().narrow(2, 0, 3) + unit(0);
+        let b = raw.clone().narrow(2, 3, 3) + unit(1);
+        let rotations = super::net::gram_schmidt(a, b);
+        let offsets = raw.narrow(2, 9, 3) * self.offset_std.clone() + self.offset_mean.clone();
+        let translation = translation * self.translation_std.clone() + self.translation_mean.clone();
+        (rotations, offsets, translation)
+    }
+}
+
+/// A loaded solver.
+#[derive(Debug)]
+pub struct Solver {
+    /// The metadata.
+    pub meta: SolverMeta,
+    /// The network.
+    pub net: SolverNet,
+    device: Device,
+}
+
+/// Frames per inference batch.
+const BATCH_FRAMES: usize = 512;
+
+impl Solver {
+    /// A solver with a freshly initialised network.
+    ///
+    /// # Errors
+    /// Inconsistent metadata.
+    pub fn new(meta: SolverMeta, device: &Device) -> Result<Solver, NnError> {
+        meta.check()?;
+        let net = SolverNet::new(&meta.architecture, &meta.graph, device);
+        Ok(Solver { meta, net, device: device.clone() })
+    }
+
+    /// A solver from its parts (training uses it to save its network).
+    pub fn from_parts(meta: SolverMeta, net: SolverNet, device: &Device) -> Solver {
+        Solver { meta, net, device: device.clone() }
+    }
+
+    /// The model file bytes.
+    ///
+    /// # Errors
+    /// burn cannot serialise the weights.
+    pub fn to_bytes(&self) -> Result<Vec<u8>, NnError> {
+        let json = serde_json::to_vec(&self.meta).map_err(|e| NnError::BadModel(e.to_string()))?;
+        let weights =
+            self.net.clone().into_record().into_bytes().map_err(|e| NnError::BadModel(format!("weights: {e:?}")))?;
+        Ok(pack(&json, &weights))
+    }
+
+    /// Reads a model file's bytes onto `device`.
+    ///
+    /// # Errors
+    /// Not a solver model file, another version, damaged metadata or weights.
+    pub fn from_bytes(bytes: &[u8], device: &Device) -> Result<Solver, NnError> {
+        let (json, weights) = unpack(bytes)?;
+        let meta: SolverMeta = serde_json::from_slice(json).map_err(|e| NnError::BadModel(format!("metadata: {e}")))?;
+        let mut solver = Solver::new(meta, device)?;
+        let record = ModuleRecord::from_bytes(Bytes::from_bytes_vec(weights.to_vec()))
+            .map_err(|e| NnError::BadModel(format!("weights: {e:?}")))?;
+        solver.net = solver.net.try_load_record(record).map_err(|e| NnError::BadModel(format!("weights: {e:?}")))?;
+        Ok(solver)
+    }
+
+    /// The whole pipeline on a raw take: outliers, gap fill (EDM, or `refiner`), solving.
+    /// Returns the motion (the model's skeleton, bone offsets fitted to the take, the take's
+    /// frame rate and frame count) and the cleaned take.
+    ///
+    /// # Errors
+    /// The take lacks model markers, or its waist frame is never defined.
+    pub fn solve(&self, take: &Take, refiner: Option<&Refiner>) -> Result<(Motion, Cleaned), NnError> {
+        // Check the markers before the (slower) cleaning.
+        crate::features::marker_order(take, &self.meta.markers)?;
+        let cleaned = clean_for_solving(take, refiner)?;
+        let motion = self.solve_cleaned(&cleaned, take.frame_rate_hz())?;
+        Ok((motion, cleaned))
+    }
+
+    /// Solves a take cleaned by [`clean_for_solving`].
+    ///
+    /// # Errors
+    /// The take lacks model markers, or its waist frame is never defined.
+    pub fn solve_cleaned(&self, cleaned: &Cleaned, rate_hz: f64) -> Result<Motion, NnError> {
+        let input = LocalInput::new(cleaned, &self.meta.markers, &self.meta.frame)?;
+        let decoded = self.run(&input);
+        let t = input.local.frames;
+        let j = self.meta.skeleton.len();
+        if t == 0 {
+            return Err(NnError::Data("the take has no frames".into()));
+        }
+        if decoded.rotations.len() != t * j * 9 || decoded.translation_mm.len() != t * 3 {
+            return Err(NnError::BadModel("the network gave outputs of the wrong size".into()));
+        }
+        // Bone offsets averaged over the take.
+        let mut mean = vec![Vec3::zeros(); j];
+        for f in 0..t {
+            for (k, m) in mean.iter_mut().enumerate() {
+                let o = &decoded.offsets_mm[(f * j + k) * 3..][..3];
+                *m += Vec3::new(o[0] as f64, o[1] as f64, o[2] as f64) / t as f64;
+            }
+        }
+        let joints: Vec<Joint> = self
+            .meta
+            .skeleton
+            .joints()
+            .iter()
+            .zip(&mean)
+            .enumerate()
+            .map(|(k, (joint, m))| Joint { offset_mm: if k == 0 { joint.offset_mm } else { *m }, ..joint.clone() })
+            .collect();
+        let skeleton = Skeleton::new(joints).map_err(|e| NnError::BadModel(e.to_string()))?;
+        let lab = lab_rotation(self.meta.lab);
+        let mut rotations = Vec::with_capacity(t * j);
+        let mut root = Vec::with_capacity(t);
+        for f in 0..t {
+            let frame = &input.local.frames_local[f];
+            for k in 0..j {
+                if !self.meta.rotating[k] && k != 0 {
+                    rotations.push(Quat::identity());
+                    continue;
+                }
+                let r = &decoded.rotations[(f * j + k) * 9..][..9];
+                let mut m = Matrix3::from_fn(|a, b| r[a * 3 + b] as f64);
+                if k == 0 {
+                    m = lab.transpose() * frame.rotation.matrix() * m;
+                }
+                let q = Quat::from_rotation_matrix(&Rotation3::from_matrix_unchecked(m));
+                rotations.push(Quat::new_normalize(q.into_inner()));
+            }
+            let tr = &decoded.translation_mm[f * 3..][..3];
+            let lab_mm = frame.to_world(&Vec3::new(tr[0] as f64, tr[1] as f64, tr[2] as f64));
+            root.push(self.meta.lab.to_motion(lab_mm));
+        }
+        Motion::new(skeleton, rotations, root, rate_hz).map_err(|e| NnError::Data(e.to_string()))
+    }
+
+    /// The network on every frame of `input`.
+    pub fn run(&self, input: &LocalInput) -> Decoded {
+        let (t, m, j) = (input.local.frames, self.meta.markers.len(), self.meta.skeleton.len());
+        let gathers = Gathers::new(&self.meta.graph, self.meta.architecture.variant, &self.device);
+        let stats = OutputTensors::new(&self.meta.outputs, &self.device);
+        let mut out = Decoded { rotations: Vec::new(), offsets_mm: Vec::new(), translation_mm: Vec::new() };
+        let mut values = Vec::new();
+        for start in (0..t).step_by(BATCH_FRAMES) {
+            let n = BATCH_FRAMES.min(t - start);
+            values.clear();
+            input_values(
+                &input.local,
+                &input.visible,
+                &self.meta.normalisation,
+                &self.meta.normalisation.mean_mm,
+                start..start + n,
+                &mut values,
+            );
+            let x = Tensor::<3>::from_data(TensorData::new(values.clone(), [n, m, 4]), &self.device);
+            let (raw, tr) = self.net.forward(x, &gathers, j);
+            debug_assert_eq!(raw.dims()[2], JOINT_OUTPUTS);
+            let (r, o, tr) = stats.decode(raw, tr);
+            let v = |x: TensorData| x.try_to_vec::<f32>().unwrap_or_default();
+            out.rotations.extend(v(r.into_data()));
+            out.offsets_mm.extend(v(o.into_data()));
+            out.translation_mm.extend(v(tr.into_data()));
+        }
+        out
+    }
+}

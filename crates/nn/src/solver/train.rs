@@ -1,0 +1,636 @@
+//! Training a solver (LocalMoCap section 3.2, Eq. 5) on the shards `locap synth` writes, with
+//! the refiner's machinery (Adam with gradient clipping, warm-up and cosine learning rate,
+//! validation on held-out frames, checkpoints and resume, loss curve).
+//!
+//! * Data: every shard's corrupted markers are cleaned once as `locap solve` cleans a real take
+//!   (outliers, EDM fill; [`super::data::clean_for_solving`]) and put in the waist frame; each
+//!   frame is an example (the solver is per frame). The last `validation_fraction` of every take
+//!   is held out.
+//! * Loss (Eq. 5): `λ_M |Y - Ŷ| + λ_S |S - Ŝ| + λ_FK |FK(Y, S) - FK(Ŷ, Ŝ)|`: mean absolute
+//!   difference of the rotation-matrix entries of the rotating joints, mean absolute offset
+//!   difference (mm) of the non-root joints, mean joint-position distance (mm) after forward
+//!   kinematics from the predicted root. Weights (defaults): `λ_M = 1`, `λ_S = 0.01 / mm`,
+//!   `λ_FK = 0.02 / mm` (a rotation-entry error of 0.1, about 6°, costs as much as 5 mm of joint
+//!   position).
+
+use super::data::{LocalInput, SolverShard, clean_for_solving, frame_truth, marker_joint_distances, read_solver_shard};
+use super::model::{OutputStats, OutputTensors, Solver, SolverMeta};
+use super::net::{
+    Gathers, MARKER_JOINT_THRESHOLD_MM, MAX_MARKERS_PER_JOINT, MIN_MARKERS_PER_JOINT, SolverArchitecture, SolverGraph,
+    SolverNet, Variant, forward_kinematics,
+};
+use crate::NnError;
+use crate::TrainConfig;
+use crate::features::{Normalisation, input_values, neighbour_graph};
+use crate::train::{Checkpoints, read_file, rng_for, write_file};
+use burn::grad_clipping::GradientClippingConfig;
+use burn::module::Module;
+use burn::optim::{AdamConfig, GradientsParams};
+use burn::prelude::*;
+use burn::tensor::Bytes;
+use locap_clean::local_frame::FrameDefinition;
+use rand::RngExt;
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+use std::path::Path;
+use std::time::Instant;
+
+/// Settings of a solver training run.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SolverTrainConfig {
+    /// Which network.
+    pub variant: Variant,
+    /// Frames per step.
+    pub batch: usize,
+    /// Optimisation steps.
+    pub steps: usize,
+    /// Peak learning rate.
+    pub learning_rate: f64,
+    /// Steps of linear warm-up.
+    pub warmup_steps: usize,
+    /// Fraction of every take held out for validation.
+    pub validation_fraction: f64,
+    /// Validation frames (evenly spread over the held-out frames).
+    pub validation_frames: usize,
+    /// Steps between validations.
+    pub validate_every: usize,
+    /// Steps between checkpoints (0: only at the end).
+    pub checkpoint_every: usize,
+    /// Seed.
+    pub seed: u64,
+    /// Features per marker and joint node.
+    pub channels: usize,
+    /// Global-node features (the MLP's width).
+    pub global: usize,
+    /// Marker-graph neighbours `K` (the paper: 3).
+    pub neighbours: usize,
+    /// Pose-averaged marker-joint distance that links a marker to a joint, mm.
+    #[serde(default = "default_link")]
+    pub link_threshold_mm: f64,
+    /// `λ_M`: rotation term weight.
+    pub rotation_weight: f64,
+    /// `λ_S`: offset term weight, per mm.
+    pub offset_weight_per_mm: f64,
+    /// `λ_FK`: forward-kinematics term weight, per mm.
+    pub fk_weight_per_mm: f64,
+    /// Local frame.
+    pub frame: FrameDefinition,
+}
+
+impl Default for SolverTrainConfig {
+    /// 256 frames per step, 32 features per node, a 128-wide global node (the MLP is 4 times as
+    /// wide, 512: about as many weights as the graph network).
+    fn default() -> SolverTrainConfig {
+        SolverTrainConfig {
+            variant: Variant::Graph,
+            batch: 256,
+            steps: 3000,
+            learning_rate: 1e-3,
+            warmup_steps: 100,
+            validation_fraction: 0.1,
+            validation_frames: 2048,
+            validate_every: 100,
+            checkpoint_every: 500,
+            seed: 1,
+            channels: 32,
+            global: 128,
+            neighbours: 3,
+            link_threshold_mm: MARKER_JOINT_THRESHOLD_MM,
+            rotation_weight: 1.0,
+            offset_weight_per_mm: 0.01,
+            fk_weight_per_mm: 0.02,
+            frame: FrameDefinition::cmu_waist(),
+        }
+    }
+}
+
+fn default_link() -> f64 {
+    MARKER_JOINT_THRESHOLD_MM
+}
+
+impl SolverTrainConfig {
+    fn check(&self) -> Result<(), NnError> {
+        if self.batch == 0 || self.channels == 0 || self.global == 0 || self.neighbours == 0 {
+            return Err(NnError::Data("batch, channels, global and neighbours must be 1 or more".into()));
+        }
+        if !(self.learning_rate.is_finite() && self.learning_rate > 0.0) {
+            return Err(NnError::Data(format!("learning rate {} must be positive", self.learning_rate)));
+        }
+        if !(0.0..0.9).contains(&self.validation_fraction) {
+            return Err(NnError::Data(format!("validation fraction {} must be in 0..0.9", self.validation_fraction)));
+        }
+        if !(self.link_threshold_mm.is_finite() && self.link_threshold_mm > 0.0) {
+            return Err(NnError::Data(format!("link threshold {} mm must be positive", self.link_threshold_mm)));
+        }
+        Ok(())
+    }
+
+    fn learning_rate_at(&self, step: usize) -> f64 {
+        let schedule = TrainConfig {
+            learning_rate: self.learning_rate,
+            warmup_steps: self.warmup_steps,
+            steps: self.steps,
+            ..TrainConfig::default()
+        };
+        schedule.learning_rate_at(step)
+    }
+}
+
+/// One take ready for training: per frame inputs and truth.
+#[derive(Debug, Clone)]
+struct TakeData {
+    frames: usize,
+    /// `[T][M][4]`.
+    input: Vec<f32>,
+    /// `[T][J][9]`.
+    rotations: Vec<f32>,
+    /// `[T][3]`.
+    translation: Vec<f32>,
+    /// `[T][J][3]`.
+    positions: Vec<f32>,
+    /// `[J][3]`.
+    offsets: Vec<f32>,
+}
+
+/// Training data: shards read and prepared.
+#[derive(Debug)]
+pub struct SolverData {
+    /// Marker labels (model order).
+    pub markers: Vec<String>,
+    /// The first shard's skeleton (every shard must have its joints and parents).
+    pub skeleton: locap_core::Skeleton,
+    /// The shards.
+    pub shards: Vec<SolverShard>,
+}
+
+impl SolverData {
+    /// Every shard under `path`.
+    ///
+    /// # Errors
+    /// No shards, shards without skeletons, or shards with other markers or joints.
+    pub fn from_path(path: &Path) -> Result<SolverData, NnError> {
+        let paths = super::data::shard_paths(path)?;
+        let shards = paths.par_iter().map(|p| read_solver_shard(p)).collect::<Result<Vec<_>, _>>()?;
+        SolverData::new(shards)
+    }
+
+    /// Checks that `shards` share markers, joints and parents.
+    ///
+    /// # Errors
+    /// No shards, or shards that differ.
+    pub fn new(shards: Vec<SolverShard>) -> Result<SolverData, NnError> {
+        let first = shards.first().ok_or_else(|| NnError::Data("no training shards".into()))?;
+        let markers: Vec<String> = first.clean.markers().iter().map(|n| n.label.clone()).collect();
+        let skeleton = first.skeleton.clone();
+        let shape =
+            |s: &locap_core::Skeleton| s.joints().iter().map(|j| (j.name.clone(), j.parent)).collect::<Vec<_>>();
+        for s in &shards {
+            crate::features::marker_order(&s.clean, &markers).map_err(|e| NnError::Data(format!("{}: {e}", s.name)))?;
+            if shape(&s.skeleton) != shape(&skeleton) {
+                return Err(NnError::Data(format!("{}: another skeleton than {}", s.name, first.name)));
+            }
+        }
+        Ok(SolverData { markers, skeleton, shards })
+    }
+
+    /// Frames of all shards.
+    pub fn frames(&self) -> usize {
+        self.shards.iter().map(|s| s.clean.frame_count()).sum()
+    }
+}
+
+/// The history of a run (also stored in the model's metadata).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
+pub struct SolverReport {
+    /// Steps done in total.
+    pub steps: usize,
+    /// `(step, Eq. 5 training loss)`, averaged over each validation interval.
+    pub training_loss: Vec<(usize, f64)>,
+    /// `(step, Eq. 5 validation loss)`.
+    pub validation_loss: Vec<(usize, f64)>,
+    /// `(step, validation joint position error, mm)` (per-frame offsets).
+    pub validation_jpe_mm: Vec<(usize, f64)>,
+    /// `(step, validation joint rotation error, degrees)`.
+    pub validation_joe_deg: Vec<(usize, f64)>,
+    /// Weights of the network.
+    pub parameters: usize,
+    /// Training frames.
+    pub training_frames: usize,
+    /// Seconds of training steps in this run.
+    pub step_seconds: f64,
+    /// Steps done in this run.
+    pub steps_this_run: usize,
+    /// The configuration.
+    pub config: Option<SolverTrainConfig>,
+}
+
+impl SolverReport {
+    /// The loss curve (training and validation Eq. 5 loss).
+    ///
+    /// # Errors
+    /// No points yet.
+    pub fn loss_curve(&self, title: &str) -> Result<locap_view::plot::Chart, locap_view::ViewError> {
+        let pts = |v: &[(usize, f64)]| v.iter().map(|(s, l)| (*s as f64, *l)).collect::<Vec<_>>();
+        let mut series = vec![("training".to_string(), pts(&self.training_loss))];
+        if !self.validation_loss.is_empty() {
+            series.push(("validation".to_string(), pts(&self.validation_loss)));
+        }
+        locap_view::plot::Chart::loss_curve(series, "Eq. 5 loss", title)
+    }
+}
+
+/// Progress after every step.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SolverProgress {
+    /// Steps done.
+    pub step: usize,
+    /// Steps in the run.
+    pub steps: usize,
+    /// Eq. 5 loss of this step.
+    pub loss: f64,
+    /// Validation JPE (mm) and JOE (degrees) if validated at this step.
+    pub validation: Option<(f64, f64)>,
+}
+
+/// A batch as tensors.
+struct Batch {
+    x: Tensor<3>,
+    rotations: Tensor<4>,
+    offsets: Tensor<3>,
+    positions: Tensor<3>,
+}
+
+impl Batch {
+    fn new(takes: &[TakeData], picks: &[(usize, usize)], m: usize, j: usize, device: &Device) -> Batch {
+        let n = picks.len();
+        let mut x = Vec::with_capacity(n * m * 4);
+        let mut rot = Vec::with_capacity(n * j * 9);
+        let mut off = Vec::with_capacity(n * j * 3);
+        let mut pos = Vec::with_capacity(n * j * 3);
+        for &(t, f) in picks {
+            let d = &takes[t];
+            x.extend_from_slice(&d.input[f * m * 4..(f + 1) * m * 4]);
+            rot.extend_from_slice(&d.rotations[f * j * 9..(f + 1) * j * 9]);
+            off.extend_from_slice(&d.offsets);
+            pos.extend_from_slice(&d.positions[f * j * 3..(f + 1) * j * 3]);
+        }
+        Batch {
+            x: Tensor::from_data(TensorData::new(x, [n, m, 4]), device),
+            rotations: Tensor::from_data(TensorData::new(rot, [n, j, 3, 3]), device),
+            offsets: Tensor::from_data(TensorData::new(off, [n, j, 3]), device),
+            positions: Tensor::from_data(TensorData::new(pos, [n, j, 3]), device),
+        }
+    }
+}
+
+/// What the loss needs besides a batch.
+struct LossParts<'a> {
+    gathers: Gathers,
+    stats: OutputTensors,
+    rotating: Tensor<4>,
+    /// The identity on joints that do not rotate, zero elsewhere: `[1, J, 3, 3]`.
+    fixed: Tensor<4>,
+    rotating_count: f32,
+    non_root: Tensor<3>,
+    parents: &'a [Option<usize>],
+    config: &'a SolverTrainConfig,
+}
+
+impl LossParts<'_> {
+    /// Eq. 5 and, for reporting, the predicted rotations and positions.
+    fn loss(&self, net: &SolverNet, batch: &Batch) -> (Tensor<1>, Tensor<4>, Tensor<3>) {
+        let [n, j, _, _] = batch.rotations.dims();
+        let (raw, tr) = net.forward(batch.x.clone(), &self.gathers, j);
+        let (rot, off, tr) = self.stats.decode(raw, tr);
+        // Joints that never rotate are the identity in FK, as at inference: the network must not
+        // use their rotation to move their children.
+        let rot_fk = rot.clone() * self.rotating.clone() + self.fixed.clone();
+        let positions = forward_kinematics(rot_fk, off.clone(), tr, self.parents);
+        let rot_term = ((rot.clone() - batch.rotations.clone()).abs() * self.rotating.clone()).sum()
+            / (n as f32 * self.rotating_count * 9.0).max(1.0);
+        let off_term = ((off - batch.offsets.clone()).abs() * self.non_root.clone()).sum()
+            / (n as f32 * (j as f32 - 1.0).max(1.0) * 3.0);
+        let fk_term = ((positions.clone() - batch.positions.clone()).powf_scalar(2.0).sum_dim(2) + 1e-2).sqrt().mean();
+        let c = self.config;
+        let loss = rot_term * c.rotation_weight as f32
+            + off_term * c.offset_weight_per_mm as f32
+            + fk_term * c.fk_weight_per_mm as f32;
+        (loss, rot, positions)
+    }
+}
+
+/// Mean joint distance (mm) and mean rotation angle (degrees, rotating joints) between
+/// predicted and true values.
+fn errors(pred_rot: &[f32], pred_pos: &[f32], batch_rot: &[f32], batch_pos: &[f32], rotating: &[bool]) -> (f64, f64) {
+    let j = rotating.len();
+    let (mut pos, mut np) = (0.0, 0.0);
+    for (a, b) in pred_pos.chunks_exact(3).zip(batch_pos.chunks_exact(3)) {
+        pos += (0..3).map(|i| ((a[i] - b[i]) as f64).powi(2)).sum::<f64>().sqrt();
+        np += 1.0;
+    }
+    let (mut ang, mut na) = (0.0, 0.0);
+    for (k, (a, b)) in pred_rot.chunks_exact(9).zip(batch_rot.chunks_exact(9)).enumerate() {
+        if rotating[k % j] {
+            ang += rotation_angle_deg(a, b);
+            na += 1.0;
+        }
+    }
+    (pos / f64::max(np, 1.0), ang / f64::max(na, 1.0))
+}
+
+/// Geodesic angle between two row-major rotation matrices, degrees.
+pub fn rotation_angle_deg(a: &[f32], b: &[f32]) -> f64 {
+    let trace: f64 = (0..9).map(|i| a[i] as f64 * b[i] as f64).sum();
+    ((trace - 1.0) / 2.0).clamp(-1.0, 1.0).acos().to_degrees()
+}
+
+/// Everything derived from the training shards: model metadata (without training summary) and
+/// the per-take data.
+fn prepare(data: &SolverData, config: &SolverTrainConfig) -> Result<(SolverMeta, Vec<TakeData>), NnError> {
+    let (m, j) = (data.markers.len(), data.skeleton.len());
+    if config.neighbours >= m {
+        return Err(NnError::Data(format!("{} neighbours need more than {m} markers", config.neighbours)));
+    }
+    let prepared = data
+        .shards
+        .par_iter()
+        .map(|s| -> Result<_, NnError> {
+            let cleaned = clean_for_solving(&s.observed, None)?;
+            let input = LocalInput::new(&cleaned, &data.markers, &config.frame)
+                .map_err(|e| NnError::Data(format!("{}: {e}", s.name)))?;
+            Ok(input)
+        })
+        .collect::<Result<Vec<LocalInput>, NnError>>()?;
+    // Pooled, not per-take centring: the solver needs where the markers are, not only how
+    // they move (bone lengths and joint positions come from it).
+    let normalisation = Normalisation::of_local_takes(prepared.iter().map(|p| &p.local), m, false);
+    // Joints that rotate anywhere in the data.
+    let mut rotating = vec![false; j];
+    for s in &data.shards {
+        for (i, q) in s.rotations.iter().enumerate() {
+            if q.angle() > 1e-4 {
+                rotating[i % j] = true;
+            }
+        }
+    }
+    for (k, joint) in data.skeleton.joints().iter().enumerate() {
+        rotating[k] &= !joint.is_end_site;
+    }
+    rotating[0] = true;
+    let takes: Vec<TakeData> = data
+        .shards
+        .par_iter()
+        .zip(&prepared)
+        .map(|(s, p)| {
+            let t = p.local.frames;
+            let mut d = TakeData {
+                frames: t,
+                input: Vec::with_capacity(t * m * 4),
+                rotations: Vec::with_capacity(t * j * 9),
+                translation: Vec::with_capacity(t * 3),
+                positions: Vec::with_capacity(t * j * 3),
+                offsets: s.skeleton.joints().iter().flat_map(|jj| jj.offset_mm.iter().map(|v| *v as f32)).collect(),
+            };
+            input_values(&p.local, &p.visible, &normalisation, &normalisation.mean_mm, 0..t, &mut d.input);
+            for f in 0..t {
+                let truth = frame_truth(s, f, &p.local.frames_local[f]);
+                d.rotations.extend(truth.rotations);
+                d.translation.extend(truth.translation_mm);
+                d.positions.extend(truth.positions_mm);
+            }
+            d
+        })
+        .collect();
+    drop(prepared);
+    // Output statistics.
+    let mean_std = |rows: &mut dyn Iterator<Item = [f64; 3]>, floor: f64| {
+        let (mut n, mut s, mut sq) = (0.0, [0.0; 3], [0.0; 3]);
+        for r in rows {
+            n += 1.0;
+            for a in 0..3 {
+                s[a] += r[a];
+                sq[a] += r[a] * r[a];
+            }
+        }
+        let mean = s.map(|v| v / f64::max(n, 1.0));
+        let std = [0, 1, 2].map(|a| (sq[a] / f64::max(n, 1.0) - mean[a] * mean[a]).max(0.0).sqrt().max(floor));
+        (mean, std)
+    };
+    let mut offset_mean_mm = Vec::with_capacity(j);
+    let mut offset_std_mm = Vec::with_capacity(j);
+    for k in 0..j {
+        let (mean, std) = mean_std(&mut data.shards.iter().map(|s| s.skeleton.joints()[k].offset_mm.into()), 5.0);
+        offset_mean_mm.push(mean);
+        offset_std_mm.push(std);
+    }
+    let (translation_mean_mm, translation_std_mm) = mean_std(
+        &mut takes.iter().flat_map(|d| d.translation.chunks_exact(3).map(|t| [t[0], t[1], t[2]].map(|v| v as f64))),
+        5.0,
+    );
+    // The graph.
+    let longest = data.shards.iter().max_by_key(|s| s.clean.frame_count()).map(|s| &s.clean);
+    let identity: Vec<usize> = (0..m).collect();
+    let marker_neighbours = match longest {
+        Some(take) => neighbour_graph(take, &identity, config.neighbours),
+        None => return Err(NnError::Data("no training shards".into())),
+    };
+    let distances = marker_joint_distances(&data.shards, &data.markers, 10);
+    let joint_markers = distances
+        .iter()
+        .map(|row| {
+            let mut order: Vec<usize> = (0..m).collect();
+            order.sort_by(|a, b| row[*a].total_cmp(&row[*b]));
+            order
+                .into_iter()
+                .enumerate()
+                .take_while(|(rank, k)| *rank < MIN_MARKERS_PER_JOINT || row[*k] < config.link_threshold_mm)
+                .take(MAX_MARKERS_PER_JOINT)
+                .map(|(_, k)| k)
+                .collect()
+        })
+        .collect();
+    let graph = SolverGraph {
+        marker_neighbours,
+        joint_markers,
+        parents: data.skeleton.joints().iter().map(|jj| jj.parent).collect(),
+    };
+    let mut skeleton_joints = data.skeleton.joints().to_vec();
+    for (joint, mean) in skeleton_joints.iter_mut().zip(&offset_mean_mm) {
+        joint.offset_mm = locap_core::Vec3::from(*mean);
+    }
+    let meta = SolverMeta {
+        markers: data.markers.clone(),
+        skeleton: locap_core::Skeleton::new(skeleton_joints).map_err(|e| NnError::Data(e.to_string()))?,
+        graph,
+        frame: config.frame.clone(),
+        lab: data.shards[0].lab,
+        normalisation,
+        outputs: OutputStats { offset_mean_mm, offset_std_mm, translation_mean_mm, translation_std_mm },
+        rotating,
+        architecture: SolverArchitecture {
+            variant: config.variant,
+            markers: m,
+            joints: j,
+            channels: config.channels,
+            global: if config.variant == Variant::Mlp { 4 * config.global } else { config.global },
+        },
+        training: serde_json::Value::Null,
+    };
+    Ok((meta, takes))
+}
+
+/// Trains a solver on `data`; `progress` is called after every step.
+///
+/// # Errors
+/// Unusable settings or data, or checkpoints that cannot be written or read.
+pub fn train_solver(
+    data: &SolverData,
+    config: &SolverTrainConfig,
+    checkpoints: Option<&Checkpoints>,
+    progress: &mut dyn FnMut(&SolverProgress),
+) -> Result<(Solver, SolverReport), NnError> {
+    config.check()?;
+    let (meta, takes) = prepare(data, config)?;
+    let (m, j) = (meta.markers.len(), meta.skeleton.len());
+    // Frames: the tail of every take is validation.
+    let mut train_frames: Vec<(usize, usize)> = Vec::new();
+    let mut valid_frames: Vec<(usize, usize)> = Vec::new();
+    for (i, d) in takes.iter().enumerate() {
+        let held = (d.frames as f64 * config.validation_fraction).ceil() as usize;
+        train_frames.extend((0..d.frames - held.min(d.frames)).map(|f| (i, f)));
+        valid_frames.extend((d.frames - held.min(d.frames)..d.frames).map(|f| (i, f)));
+    }
+    if train_frames.is_empty() {
+        return Err(NnError::Data("no training frames".into()));
+    }
+    let stride = valid_frames.len().div_ceil(config.validation_frames.max(1)).max(1);
+    let valid_frames: Vec<(usize, usize)> = valid_frames.into_iter().step_by(stride).collect();
+
+    let device = Device::default().autodiff();
+    device.seed(config.seed);
+    let mut net = SolverNet::new(&meta.architecture, &meta.graph, &device);
+    let mut optimizer = AdamConfig::new().with_grad_clipping(Some(GradientClippingConfig::Norm(1.0))).init();
+    let mut report = SolverReport {
+        parameters: net.num_params(),
+        training_frames: train_frames.len(),
+        config: Some(config.clone()),
+        ..SolverReport::default()
+    };
+    let (model_path, optimizer_path) = match checkpoints {
+        Some(cp) => (Some(cp.dir.join("checkpoint.locapsv")), Some(cp.dir.join("optimizer.bin"))),
+        None => (None, None),
+    };
+    if let (Some(cp), Some(mp), Some(op)) = (checkpoints, &model_path, &optimizer_path) {
+        std::fs::create_dir_all(&cp.dir)
+            .map_err(|source| NnError::Io { path: cp.dir.display().to_string(), source })?;
+        if cp.resume && mp.exists() {
+            let saved = Solver::from_bytes(&read_file(mp)?, &device)?;
+            if saved.meta.markers != meta.markers || saved.meta.architecture != meta.architecture {
+                return Err(NnError::Data(format!(
+                    "{}: the checkpoint has other markers or another network than this run",
+                    mp.display()
+                )));
+            }
+            let previous: SolverReport = serde_json::from_value(saved.meta.training.clone())
+                .map_err(|e| NnError::BadModel(format!("checkpoint report: {e}")))?;
+            net = saved.net;
+            optimizer = optimizer
+                .from_bytes(Bytes::from_bytes_vec(read_file(op)?))
+                .map_err(|e| NnError::BadModel(format!("{}: {e:?}", op.display())))?;
+            report.steps = previous.steps;
+            report.training_loss = previous.training_loss;
+            report.validation_loss = previous.validation_loss;
+            report.validation_jpe_mm = previous.validation_jpe_mm;
+            report.validation_joe_deg = previous.validation_joe_deg;
+        }
+    }
+
+    let parts = |device: &Device| {
+        let mask_r: Vec<f32> = meta.rotating.iter().map(|r| if *r { 1.0 } else { 0.0 }).collect();
+        let mask_o: Vec<f32> = (0..j).map(|k| if k == 0 { 0.0 } else { 1.0 }).collect();
+        let fixed: Vec<f32> =
+            mask_r.iter().flat_map(|r| (0..9).map(move |i| if i % 4 == 0 { 1.0 - r } else { 0.0 })).collect();
+        LossParts {
+            fixed: Tensor::from_data(TensorData::new(fixed, [1, j, 3, 3]), device),
+            gathers: Gathers::new(&meta.graph, meta.architecture.variant, device),
+            stats: OutputTensors::new(&meta.outputs, device),
+            rotating_count: mask_r.iter().sum(),
+            rotating: Tensor::from_data(TensorData::new(mask_r, [1, j, 1, 1]), device),
+            non_root: Tensor::from_data(TensorData::new(mask_o, [1, j, 1]), device),
+            parents: &meta.graph.parents,
+            config,
+        }
+    };
+    let train_parts = parts(&device);
+    let validate = |net: &SolverNet| -> Option<(f64, f64, f64)> {
+        if valid_frames.is_empty() {
+            return None;
+        }
+        let inner = device.clone().without_autodiff();
+        let valid_net = net.valid();
+        let vp = parts(&inner);
+        let (mut loss, mut jpe, mut joe, mut n) = (0.0, 0.0, 0.0, 0.0);
+        for chunk in valid_frames.chunks(512) {
+            let batch = Batch::new(&takes, chunk, m, j, &inner);
+            let (l, rot, pos) = vp.loss(&valid_net, &batch);
+            let v = |t: TensorData| t.try_to_vec::<f32>().unwrap_or_default();
+            let (p, r) = (v(pos.into_data()), v(rot.into_data()));
+            let (bp, br) = (v(batch.positions.into_data()), v(batch.rotations.into_data()));
+            let (e_pos, e_rot) = errors(&r, &p, &br, &bp, &meta.rotating);
+            let w = chunk.len() as f64;
+            loss += l.into_scalar::<f32>() as f64 * w;
+            jpe += e_pos * w;
+            joe += e_rot * w;
+            n += w;
+        }
+        Some((loss / n, jpe / n, joe / n))
+    };
+
+    let mut interval = (0.0, 0usize);
+    for step in report.steps..config.steps {
+        let started = Instant::now();
+        let mut rng = rng_for(config.seed, step as u64, 0);
+        let picks: Vec<(usize, usize)> =
+            (0..config.batch).map(|_| train_frames[rng.random_range(0..train_frames.len())]).collect();
+        let batch = Batch::new(&takes, &picks, m, j, &device);
+        let lr = config.learning_rate_at(step);
+        let (loss, _, _) = train_parts.loss(&net, &batch);
+        let value: f32 = loss.clone().into_scalar();
+        if !value.is_finite() {
+            return Err(NnError::Data(format!("the loss is not finite at step {step}; lower the learning rate")));
+        }
+        let grads = GradientsParams::from_grads(loss.backward(), &net);
+        net = optimizer.step(lr, net, grads);
+        report.step_seconds += started.elapsed().as_secs_f64();
+        report.steps_this_run += 1;
+        report.steps = step + 1;
+        interval.0 += value as f64;
+        interval.1 += 1;
+        let done = step + 1 == config.steps;
+        let mut validation = None;
+        if (step + 1) % config.validate_every.max(1) == 0 || done {
+            report.training_loss.push((step + 1, interval.0 / interval.1 as f64));
+            interval = (0.0, 0);
+            if let Some((l, jpe, joe)) = validate(&net) {
+                report.validation_loss.push((step + 1, l));
+                report.validation_jpe_mm.push((step + 1, jpe));
+                report.validation_joe_deg.push((step + 1, joe));
+                validation = Some((jpe, joe));
+            }
+        }
+        progress(&SolverProgress { step: step + 1, steps: config.steps, loss: value as f64, validation });
+        if let (Some(mp), Some(op)) = (&model_path, &optimizer_path)
+            && ((config.checkpoint_every > 0 && (step + 1) % config.checkpoint_every == 0) || done)
+        {
+            let mut meta = meta.clone();
+            meta.training = serde_json::to_value(&report).map_err(|e| NnError::Data(e.to_string()))?;
+            write_file(mp, &Solver::from_parts(meta, net.clone(), &device).to_bytes()?)?;
+            let state = optimizer.into_bytes().map_err(|e| NnError::Data(format!("optimizer state: {e:?}")))?;
+            write_file(op, &state)?;
+        }
+    }
+    let mut meta = meta;
+    meta.training = serde_json::to_value(&report).map_err(|e| NnError::Data(e.to_string()))?;
+    let inner = device.without_autodiff();
+    Ok((Solver::from_parts(meta, net.valid(), &inner), report))
+}
