@@ -1,7 +1,7 @@
 //! `locap solve`: the whole LocalMoCap pipeline on raw labeled takes (sections 3.1-3.2):
-//! swapped labels and outliers repaired, gaps filled (EDM, or EDM + the learned refiner with
-//! `--refiner`), then the motion solver turns every frame into joint rotations and the root
-//! position, with bone lengths fitted to the subject (offsets averaged over the take). Writes
+//! swapped labels and outliers repaired, gaps filled (EDM + the learned refiner: the shipped
+//! one when it fits the markers, or `--refiner`; EDM alone with `--no-refiner`), then the motion
+//! solver turns every frame into joint rotations and the root position, with bone lengths fitted to the subject (offsets averaged over the take). Writes
 //! BVH at the take's own frame rate with exactly its frame count, in the skeleton's Y-up motion
 //! frame (the lab frame the model was trained for is undone), lengths in centimetres.
 //!
@@ -38,9 +38,13 @@ pub struct Args {
     /// Solver model (from `locap train solve`). Default: the built-in CMU 41-marker solver.
     #[arg(long, value_name = "MODEL", help_heading = "Models")]
     model: Option<PathBuf>,
-    /// Gap-fill refiner model (from `locap train fill`); without it, gaps are filled by EDM.
+    /// Gap-fill refiner model (from `locap train fill`). Default: the shipped refiner when it
+    /// fits the take's markers (else EDM alone).
     #[arg(long, value_name = "MODEL", help_heading = "Models")]
     refiner: Option<PathBuf>,
+    /// Fill gaps with EDM alone, without a refiner.
+    #[arg(long, conflicts_with = "refiner", help_heading = "Models")]
+    no_refiner: bool,
 }
 
 /// What one take gave.
@@ -99,7 +103,14 @@ pub fn run(args: Args) -> Result<ExitCode> {
         // One solver per job: a burn module is not shared between threads.
         let device = Default::default();
         let solver = Solver::from_bytes(&model, &device)?;
-        let refiner = refiner.as_deref().map(|b| Refiner::from_bytes(b, &device)).transpose()?;
+        let refiner = match (&refiner, args.no_refiner) {
+            (Some(bytes), _) => Some(Refiner::from_bytes(bytes, &device)?),
+            (None, true) => None,
+            // The shipped refiners that fit this take (none: EDM alone).
+            (None, false) => locap_nn::shipped::refiners(&device)?
+                .into_iter()
+                .find(|r| locap_nn::features::marker_order(&take, &r.meta.markers).is_ok()),
+        };
         let (motion, cleaned) = solver.solve(&take, refiner.as_ref())?;
         let seconds = t0.elapsed().as_secs_f64();
         inputs::create_parent(&targets[i])?;
