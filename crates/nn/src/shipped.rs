@@ -3,7 +3,7 @@
 //!
 //! They are used when a command needs a refiner and none is given: each take is refined by
 //! those whose markers it carries (the body model on the CMU/HDM05 41-marker set, the hand
-//! models on the paper's hand markers).
+//! models on the paper's 14 markers per hand, `LIWR` ... `LPNK6` and `RIWR` ... `RPNK6`).
 
 use crate::NnError;
 use crate::refiner::Refiner;
@@ -19,8 +19,11 @@ pub struct Shipped {
 }
 
 /// Every shipped refiner.
-pub const REFINERS: &[Shipped] =
-    &[Shipped { name: "refiner-cmu41.locapnn", bytes: include_bytes!("../../../models/refiner-cmu41.locapnn") }];
+pub const REFINERS: &[Shipped] = &[
+    Shipped { name: "refiner-cmu41.locapnn", bytes: include_bytes!("../../../models/refiner-cmu41.locapnn") },
+    Shipped { name: "refiner-hand-left.locapnn", bytes: include_bytes!("../../../models/refiner-hand-left.locapnn") },
+    Shipped { name: "refiner-hand-right.locapnn", bytes: include_bytes!("../../../models/refiner-hand-right.locapnn") },
+];
 
 /// The shipped refiners, loaded on `device`.
 ///

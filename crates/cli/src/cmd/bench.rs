@@ -293,15 +293,16 @@ fn fill(args: FillArgs) -> Result<ExitCode> {
             fill: Box::new(move |take| refiner.refine(take).map(|f| f.take).map_err(|e| e.to_string())),
         });
     }
-    if !shipped.is_empty() {
+    let fits = |take: &locap_core::Take, r: &locap_nn::Refiner| {
+        locap_nn::features::marker_order(take, &r.meta.markers).is_ok()
+    };
+    // The shipped refiners are scored only where some take carries their markers.
+    if takes.iter().any(|(_, take)| shipped.iter().any(|r| fits(take, r))) {
         let shipped = &shipped;
         methods.push(fill_bench::Method {
             name: "neural".into(),
             fill: Box::new(move |take| {
-                let fitting: Vec<&locap_nn::Refiner> = shipped
-                    .iter()
-                    .filter(|r| locap_nn::features::marker_order(take, &r.meta.markers).is_ok())
-                    .collect();
+                let fitting: Vec<&locap_nn::Refiner> = shipped.iter().filter(|r| fits(take, r)).collect();
                 if fitting.is_empty() {
                     return Err("no shipped refiner was trained on this marker set".into());
                 }
