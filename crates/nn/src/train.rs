@@ -214,9 +214,10 @@ impl TrainingData {
     /// # Errors
     /// No takes, unreadable files, or a take lacking some of the first take's markers.
     pub fn from_paths(paths: &[PathBuf]) -> Result<TrainingData, NnError> {
-        fn io(p: &Path) -> impl FnOnce(std::io::Error) -> NnError + '_ {
-            move |source| NnError::Io { path: p.display().to_string(), source }
-        }
+        let io = |p: &Path| {
+            let p = p.display().to_string();
+            move |source| NnError::Io { path: p, source }
+        };
         let is = |p: &Path, ext: &str| p.extension().is_some_and(|e| e.eq_ignore_ascii_case(ext));
         let (mut shards, mut c3ds): (Vec<PathBuf>, Vec<PathBuf>) = (Vec::new(), Vec::new());
         for path in paths {
@@ -228,20 +229,8 @@ impl TrainingData {
                 }
                 continue;
             }
-            let (mut found_shards, mut found_c3ds) = (Vec::new(), Vec::new());
-            let mut folders = vec![path.clone()];
-            while let Some(folder) = folders.pop() {
-                for entry in std::fs::read_dir(&folder).map_err(io(&folder))? {
-                    let path = entry.map_err(io(&folder))?.path();
-                    if path.is_dir() {
-                        folders.push(path);
-                    } else if is(&path, "shard") {
-                        found_shards.push(path);
-                    } else if is(&path, "c3d") {
-                        found_c3ds.push(path);
-                    }
-                }
-            }
+            let found_shards = files_under(path, "shard")?;
+            let found_c3ds = files_under(path, "c3d")?;
             // `locap synth` writes STEM.c3d and STEM.clean.c3d beside STEM.shard: a folder with
             // shards gives its shards only, so no take is read twice.
             if found_shards.is_empty() {
@@ -305,6 +294,31 @@ impl TrainingData {
     pub fn steps_per_epoch(&self, config: &TrainConfig) -> usize {
         self.frames().div_ceil(config.window * config.batch).max(1)
     }
+}
+
+/// Every file with extension `ext` (any case) under the folder `dir`, searched recursively.
+///
+/// # Errors
+/// A folder cannot be listed.
+pub(crate) fn files_under(dir: &Path, ext: &str) -> Result<Vec<PathBuf>, NnError> {
+    let io = |p: &Path| {
+        let p = p.display().to_string();
+        move |source| NnError::Io { path: p, source }
+    };
+    let mut found = Vec::new();
+    let mut folders = vec![dir.to_path_buf()];
+    while let Some(folder) = folders.pop() {
+        for entry in std::fs::read_dir(&folder).map_err(io(&folder))? {
+            let path = entry.map_err(io(&folder))?.path();
+            if path.is_dir() {
+                folders.push(path);
+            } else if path.extension().is_some_and(|e| e.eq_ignore_ascii_case(ext)) {
+                found.push(path);
+            }
+        }
+    }
+    found.sort();
+    Ok(found)
 }
 
 /// One example: `[window, M]` values of network input, EDM fill, truth and loss mask.

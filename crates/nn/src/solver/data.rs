@@ -89,27 +89,7 @@ pub fn read_solver_shard(path: &Path) -> Result<SolverShard, NnError> {
 /// # Errors
 /// A folder cannot be listed, or there are no shards.
 pub fn shard_paths(path: &Path) -> Result<Vec<PathBuf>, NnError> {
-    let io = |p: &Path| {
-        let p = p.display().to_string();
-        move |source| NnError::Io { path: p, source }
-    };
-    let mut paths = Vec::new();
-    if path.is_dir() {
-        let mut folders = vec![path.to_path_buf()];
-        while let Some(folder) = folders.pop() {
-            for entry in std::fs::read_dir(&folder).map_err(io(&folder))? {
-                let p = entry.map_err(io(&folder))?.path();
-                if p.is_dir() {
-                    folders.push(p);
-                } else if p.extension().is_some_and(|e| e == "shard") {
-                    paths.push(p);
-                }
-            }
-        }
-    } else {
-        paths.push(path.to_path_buf());
-    }
-    paths.sort();
+    let paths = if path.is_dir() { crate::train::files_under(path, "shard")? } else { vec![path.to_path_buf()] };
     if paths.is_empty() {
         return Err(NnError::Data(format!("{}: no .shard files (write them with `locap synth`)", path.display())));
     }
