@@ -267,6 +267,8 @@ pub struct Labeler {
     innovation_mm2: Vec<f64>,
     /// Ratio of measured to modelled innovation, averaged over time.
     innovation_scale: Vec<f64>,
+    /// Whether each marker was labeled in the previous frame (the edge check judges a
+    /// re-acquired marker on edge lengths, a tracked one on their change).
     was_labeled: Vec<bool>,
     labels: Vec<Option<u32>>,
     /// Position of each marker this frame: measured, estimated or unknown.
@@ -278,6 +280,8 @@ pub struct Labeler {
     candidate_point: Vec<u32>,
     candidate_cost: Vec<f64>,
     assignment: GatedAssignment,
+    /// Scratch `(key, marker, point)` triples: closest-point pairs by distance, or labels to
+    /// check by surprise.
     greedy: Vec<(f64, u32, u32)>,
     /// Markers given a second chance this frame ([`Labeler::recover`]).
     recovering: Vec<u32>,
