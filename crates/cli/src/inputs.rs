@@ -150,6 +150,13 @@ pub fn write_json(path: &Path, value: &impl serde::Serialize) -> Result<()> {
     Ok(())
 }
 
+/// Writes `bytes` to `path`, atomically; the error names the file.
+pub fn write_bytes(path: &Path, bytes: &[u8]) -> Result<()> {
+    locap_io::atomic::write_atomically(path, |w| Ok(w.write_all(bytes)?))
+        .with_context(|| format!("{}", path.display()))?;
+    Ok(())
+}
+
 /// Creates the folder a batch output goes into (it mirrors the input's subfolder).
 pub fn create_parent(target: &Path) -> Result<()> {
     if let Some(dir) = target.parent().filter(|d| !d.as_os_str().is_empty()) {

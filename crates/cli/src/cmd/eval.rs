@@ -79,8 +79,7 @@ fn write_chart(chart: &Chart, path_stem: &Path) -> Result<()> {
     for (format, ext) in [(Format::Svg, "svg"), (Format::Png, "png")] {
         let path = path_stem.with_extension(ext);
         let bytes = chart.render(format, chart.default_size())?;
-        locap_io::atomic::write_atomically(&path, |w| Ok(w.write_all(&bytes)?))
-            .with_context(|| format!("{}", path.display()))?;
+        crate::inputs::write_bytes(&path, &bytes)?;
     }
     Ok(())
 }

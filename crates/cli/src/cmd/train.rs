@@ -183,12 +183,10 @@ fn fill(args: FillArgs) -> Result<ExitCode> {
     bar.finish_and_clear();
     let bytes = refiner.to_bytes()?;
     crate::inputs::create_parent(&args.out)?;
-    locap_io::atomic::write_atomically(&args.out, |w| Ok(w.write_all(&bytes)?))
-        .with_context(|| format!("{}", args.out.display()))?;
+    crate::inputs::write_bytes(&args.out, &bytes)?;
     let curve_path = with_suffix(&args.out, ".loss.svg");
     let curve = report.loss_curve("locap train fill")?.render(locap_view::plot::Format::Svg, (800, 480))?;
-    locap_io::atomic::write_atomically(&curve_path, |w| Ok(w.write_all(&curve)?))
-        .with_context(|| format!("{}", curve_path.display()))?;
+    crate::inputs::write_bytes(&curve_path, &curve)?;
     let last = |v: &[(usize, f64)]| v.last().map(|x| format!("{:.2} mm", x.1)).unwrap_or_else(|| "-".into());
     crate::emit(&format!(
         "{}: {} weights ({:.1} MB), {} steps ({:.3} s/step); training loss {}, validation {} (EDM alone {}); loss curve {}\n",

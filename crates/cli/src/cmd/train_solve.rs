@@ -7,7 +7,7 @@
 //! marker convolutions (`no-marker-conv`) or Holden (2018)'s residual MLP (`mlp`), all with the
 //! same data, loss and budget so `locap eval` compares like with like.
 
-use anyhow::{Context, Result, bail};
+use anyhow::{Result, bail};
 use clap::{Parser, ValueEnum};
 use locap_clean::local_frame::FrameDefinition;
 use locap_nn::solver::{SolverData, SolverTrainConfig, Variant, train_solver};
@@ -148,12 +148,10 @@ pub fn run(args: SolveArgs) -> Result<ExitCode> {
     bar.finish_and_clear();
     let bytes = solver.to_bytes()?;
     crate::inputs::create_parent(&args.out)?;
-    locap_io::atomic::write_atomically(&args.out, |w| Ok(w.write_all(&bytes)?))
-        .with_context(|| format!("{}", args.out.display()))?;
+    crate::inputs::write_bytes(&args.out, &bytes)?;
     let curve_path = super::train::with_suffix(&args.out, ".loss.svg");
     let curve = report.loss_curve("locap train solve")?.render(locap_view::plot::Format::Svg, (800, 480))?;
-    locap_io::atomic::write_atomically(&curve_path, |w| Ok(w.write_all(&curve)?))
-        .with_context(|| format!("{}", curve_path.display()))?;
+    crate::inputs::write_bytes(&curve_path, &curve)?;
     let last = |v: &[(usize, f64)], unit: &str| v.last().map(|x| format!("{:.2} {unit}", x.1)).unwrap_or("-".into());
     crate::emit(&format!(
         "{}: {} solver, {} weights ({:.1} MB), {} steps ({:.3} s/step, {:.0} s); validation JPE {}, JOE {} (per-frame offsets); loss curve {}\n",
