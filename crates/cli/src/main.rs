@@ -4,13 +4,15 @@
 //! does the work through the library crates. Commands take many files or folders; each take
 //! is an independent job run on all cores, and one bad take prints `path: reason` without
 //! stopping the others; the exit status says whether any failed (0 = all good, 1 = some take
-//! failed, 2 = usage error).
+//! failed, 2 = usage error: a mistake on the command line, see [`inputs::Usage`]).
 
 mod cmd;
 mod inputs;
+mod values;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
+use std::sync::atomic::{AtomicUsize, Ordering};
 
 /// locap: automatic optical motion capture clean-up.
 ///
@@ -62,6 +64,7 @@ enum Command {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    remove_temporaries_on_signals();
     let result = match cli.command {
         Command::Info(args) => cmd::info::run(args),
         Command::Convert(args) => cmd::convert::run(args),
@@ -80,11 +83,32 @@ fn main() -> ExitCode {
         Command::Eval(args) => cmd::eval::run(args),
     };
     match result {
+        // A take that failed was reported as it failed; it decides the status even where the
+        // command's own summary did not count it (an input that could not be opened at all).
+        Ok(code) if code == ExitCode::SUCCESS && FAILURES.load(Ordering::Relaxed) > 0 => ExitCode::from(1),
         Ok(code) => code,
         Err(err) => {
             eprintln!("locap: error: {err:#}");
-            ExitCode::from(2)
+            if err.downcast_ref::<inputs::Usage>().is_some() { ExitCode::from(2) } else { ExitCode::from(1) }
         }
+    }
+}
+
+/// Failures reported by [`report_failure`] in this run.
+static FAILURES: AtomicUsize = AtomicUsize::new(0);
+
+/// Removes the temporary files of writes in progress when the user interrupts the program
+/// (`SIGINT`, `SIGTERM`, `SIGHUP`), then exits as a shell expects of a killed program.
+fn remove_temporaries_on_signals() {
+    let installed = ctrlc::set_handler(|| {
+        locap_io::atomic::remove_unfinished();
+        eprintln!("locap: interrupted; unfinished output removed");
+        std::process::exit(130);
+    });
+    if let Err(err) = installed {
+        eprintln!(
+            "locap: warning: cannot catch interrupts ({err}); an interrupted write may leave a .locap-*.tmp file"
+        );
     }
 }
 
@@ -102,6 +126,7 @@ pub fn emit(text: &str) -> anyhow::Result<()> {
 /// Reports a failed take on standard error without stopping the batch. Library errors name
 /// their file already; others get the path in front.
 pub fn report_failure(path: &std::path::Path, err: &anyhow::Error) {
+    FAILURES.fetch_add(1, Ordering::Relaxed);
     let text = format!("{err:#}");
     if text.contains(&path.display().to_string()) {
         eprintln!("locap: {text}");

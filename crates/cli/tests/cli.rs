@@ -99,8 +99,9 @@ fn bad_input_is_reported_not_panicked() {
     assert!(stderr.contains("junk.c3d") && stderr.contains("byte 1"), "{stderr}");
     assert!(!stderr.contains("panicked"), "{stderr}");
 
+    // A missing file is a failed take (1), not a usage error (2).
     let out = locap().args(["info", "does-not-exist.c3d"]).output().unwrap();
-    assert_eq!(out.status.code(), Some(2));
+    assert_eq!(out.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&out.stderr).contains("does-not-exist.c3d"));
 
     let example = repo().join("examples/cmu_01_01_last10s.c3d");
@@ -237,7 +238,7 @@ fn unlabel_then_label_the_shipped_example() {
         .args(["label", raw.to_str().unwrap(), "--template", empty.to_str().unwrap(), "-o", "x.c3d"])
         .output()
         .unwrap();
-    assert_eq!(out.status.code(), Some(2));
+    assert_eq!(out.status.code(), Some(1), "a bad file is not a usage error");
     assert!(String::from_utf8_lossy(&out.stderr).contains("empty.c3d"));
 }
 

@@ -29,8 +29,8 @@ fn neural_clean_uses_the_shipped_refiner_or_a_usable_model() {
         .arg(dir.path().join("o2.c3d"))
         .output()
         .unwrap();
-    assert_eq!(out.status.code(), Some(2));
-    assert!(String::from_utf8_lossy(&out.stderr).contains("not a usable locap refiner model"));
+    assert_eq!(out.status.code(), Some(1), "a bad model file is not a usage error");
+    assert!(String::from_utf8_lossy(&out.stderr).contains("not a usable locap model file"));
 }
 
 /// A tiny model trained for a few steps on shards of one CMU motion cleans the CMU example take

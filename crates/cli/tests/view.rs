@@ -261,7 +261,7 @@ fn view_reports_mismatched_inputs() {
     let copy = dir.path().join("copy.c3d");
     std::fs::copy(&take, &copy).unwrap();
     let out = locap().arg("view").arg(&copy).arg("-o").arg(&copy).output().unwrap();
-    assert_eq!(out.status.code(), Some(1));
+    assert_eq!(out.status.code(), Some(2), "an output that is the input is a usage error");
     assert!(String::from_utf8_lossy(&out.stderr).contains("never overwrites its input"));
     assert_eq!(std::fs::read(&copy).unwrap(), std::fs::read(&take).unwrap());
     let out =
@@ -292,7 +292,7 @@ fn plot_writes_charts() {
     let not_a_report = dir.path().join("other.json");
     std::fs::write(&not_a_report, r#"{"markers": 3}"#).unwrap();
     let out = locap().args(["plot", "fill"]).arg(&not_a_report).arg("-o").arg(&svg).output().unwrap();
-    assert_eq!(out.status.code(), Some(2));
+    assert_eq!(out.status.code(), Some(1), "a bad report file is not a usage error");
     assert!(String::from_utf8_lossy(&out.stderr).contains("not a report"));
 }
 
@@ -652,15 +652,22 @@ fn page_answers_keys_clicks_and_playback() {
 
     let rect = b.eval("(() => { const r = document.getElementById('play').getBoundingClientRect(); return [r.left + r.width / 2, r.top + r.height / 2]; })()");
     b.click(rect[0].as_f64().unwrap(), rect[1].as_f64().unwrap());
-    let started = b.eval("[locapViewer.playing, locapViewer.frame, performance.now()]");
-    assert_eq!(started[0], true);
-    std::thread::sleep(std::time::Duration::from_millis(1500));
-    let later = b.eval("[locapViewer.frame, performance.now()]");
-    let advanced = later[0].as_f64().unwrap() - started[1].as_f64().unwrap();
-    let seconds = (later[1].as_f64().unwrap() - started[2].as_f64().unwrap()) / 1000.0;
-    // 120 Hz at 1x: the frame follows the clock, give or take a few animation frames
-    // (counted modulo the take, which loops at its end).
-    let advanced = (advanced + frames) % frames;
-    eprintln!("playback: {advanced} frames in {seconds:.2} s");
-    assert!((advanced - 120.0 * seconds).abs() < 0.25 * 120.0 * seconds + 10.0, "{advanced} frames in {seconds:.2} s");
+    assert_eq!(b.eval("locapViewer.playing"), true);
+    // Wait (polling, however slow the machine) until playback has run 120 frames, then check
+    // the frames follow the page's own animation clock at 120 Hz, 1x: no wall-clock timing of
+    // a shared machine from outside.
+    let mut played = serde_json::Value::Null;
+    for _ in 0..600 {
+        played = b.eval("[locapViewer.playedFrames, locapViewer.playedMs, locapViewer.frame]");
+        if played[0].as_f64().unwrap() >= 120.0 {
+            break;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    }
+    let (frames_played, ms) = (played[0].as_f64().unwrap(), played[1].as_f64().unwrap());
+    eprintln!("playback: {frames_played} frames in {ms:.0} ms of animation time");
+    assert!(frames_played >= 120.0, "playback advanced only {frames_played} frames");
+    assert!((frames_played - 120.0 * ms / 1000.0).abs() <= 1.0, "{frames_played} frames in {ms:.0} ms at 120 Hz");
+    let expected = (middle + frames_played) % frames;
+    assert_eq!(played[2].as_f64().unwrap(), expected, "the frame shown is the frame played to");
 }

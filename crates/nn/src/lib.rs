@@ -43,8 +43,8 @@ pub enum NnError {
         /// The first few missing labels.
         first: String,
     },
-    /// Not a model file, or a damaged one.
-    #[error("not a usable locap refiner model: {0}")]
+    /// Not a model file (refiner or solver), or a damaged one.
+    #[error("not a usable locap model file: {0}")]
     BadModel(String),
     /// The local frame cannot be built on the take.
     #[error(transparent)]

@@ -40,11 +40,11 @@ pub struct LabelArgs {
     #[arg(required = true, value_name = "TAKE")]
     takes: Vec<PathBuf>,
     /// Frame rates to test (Hz), comma-separated.
-    #[arg(long, value_delimiter = ',', default_value = "120,60,30", value_name = "HZ")]
+    #[arg(value_parser = crate::values::rate_hz, long, value_delimiter = ',', default_value = "120,60,30", value_name = "HZ")]
     fps: Vec<f64>,
     /// Ghost points per frame to test, comma-separated; `M` means as many as markers.
-    #[arg(long, value_delimiter = ',', default_value = "0,M", value_name = "N")]
-    ghosts: Vec<String>,
+    #[arg(long, value_delimiter = ',', default_value = "0,M", value_name = "N", value_parser = parse_ghosts)]
+    ghosts: Vec<GhostCount>,
     /// Where ghosts appear: near the body, riding on markers, or anywhere in the volume.
     #[arg(long, value_enum, default_value_t = GhostModeArg::Near)]
     ghost_mode: GhostModeArg,
@@ -57,7 +57,7 @@ pub struct LabelArgs {
     #[arg(long, value_name = "FILE")]
     gap_source: Option<PathBuf>,
     /// Segment length (s): each segment is labeled on its own from its first frame.
-    #[arg(long, default_value_t = 10.0, value_name = "SECONDS")]
+    #[arg(value_parser = crate::values::positive, long, default_value_t = 10.0, value_name = "SECONDS")]
     segment: f64,
     /// Seed (same seed, same points).
     #[arg(long, default_value_t = 1)]
@@ -97,11 +97,18 @@ pub enum Drop {
     None,
 }
 
-/// Parses a ghost count: a number, or `M` for as many as markers.
-pub fn parse_ghosts(text: &str) -> Result<GhostCount> {
+/// Parses a ghost count: a number up to [`crate::values::MAX_GHOSTS`], or `M` for as many as
+/// markers.
+pub fn parse_ghosts(text: &str) -> Result<GhostCount, String> {
     match text.trim() {
         "M" | "m" | "markers" => Ok(GhostCount::PerMarker),
-        n => Ok(GhostCount::Fixed(n.parse().with_context(|| format!("ghost count {n:?} is not a number or M"))?)),
+        n => {
+            let count: usize = n.parse().map_err(|_| format!("ghost count {n:?} is not a number or M"))?;
+            if count as u64 > crate::values::MAX_GHOSTS {
+                return Err(format!("{count} ghosts per frame: at most {}", crate::values::MAX_GHOSTS));
+            }
+            Ok(GhostCount::Fixed(count))
+        }
     }
 }
 
@@ -124,16 +131,16 @@ pub struct FillArgs {
     #[arg(long, value_name = "FILE")]
     gap_source: Vec<PathBuf>,
     /// Longest gap hidden, frames.
-    #[arg(long, default_value_t = 600, value_name = "FRAMES")]
+    #[arg(value_parser = crate::values::count(1, 1 << 24), long, default_value_t = 600, value_name = "FRAMES")]
     max_gap: usize,
     /// Missing fraction per marker with `--gaps uniform`.
-    #[arg(long, default_value_t = 0.1)]
+    #[arg(value_parser = crate::values::fraction, long, default_value_t = 0.1)]
     uniform_fraction: f64,
     /// Seed of the gap sampler (same seed, same gaps).
     #[arg(long, default_value_t = 1)]
     seed: u64,
     /// Neighbours used by EDM.
-    #[arg(long, default_value_t = 6)]
+    #[arg(value_parser = crate::values::count(1, 64), long, default_value_t = 6)]
     neighbours: usize,
     /// Learned refiners (`locap train fill`) to score on the same gaps: a model trained on EDM's
     /// fill is reported as `neural`, one trained on the linear fill as `neural-no-edm` (the
@@ -169,13 +176,15 @@ pub fn run(args: Args) -> Result<ExitCode> {
     }
 }
 
-fn read_takes(paths: &[PathBuf]) -> Result<Vec<(String, locap_core::Take)>> {
+fn read_takes(paths: &[PathBuf], json: Option<&std::path::Path>) -> Result<Vec<(String, locap_core::Take)>> {
     let files = inputs::expand(paths, &["c3d", "trc"])?;
+    inputs::check_outputs(json.map(std::path::Path::to_path_buf).as_slice())?;
     files.iter().map(|p| Ok((p.display().to_string(), read_take(p)?))).collect()
 }
 
 /// Occlusion statistics from a JSON file or a take with real gaps.
 pub fn gap_model_from(source: &std::path::Path) -> Result<GapModel> {
+    inputs::protect(&[source])?;
     if inputs::has_extension(source, &["json"]) {
         let text = std::fs::read_to_string(source).with_context(|| format!("{}", source.display()))?;
         Ok(GapModel::from_json(&text).with_context(|| format!("{}", source.display()))?)
@@ -186,19 +195,13 @@ pub fn gap_model_from(source: &std::path::Path) -> Result<GapModel> {
 }
 
 fn label(args: LabelArgs) -> Result<ExitCode> {
-    let takes = read_takes(&args.takes)?;
+    let takes = read_takes(&args.takes, args.json.as_deref())?;
     if takes.is_empty() {
         bail!("no takes");
     }
-    if args.fps.iter().any(|f| !(*f > 0.0)) {
-        bail!("--fps values must be positive");
-    }
-    if !(args.segment > 0.0) {
-        bail!("--segment must be positive");
-    }
     let config = LabelBenchConfig {
         frame_rates_hz: args.fps.clone(),
-        ghosts: args.ghosts.iter().map(|g| parse_ghosts(g)).collect::<Result<_>>()?,
+        ghosts: args.ghosts.clone(),
         ghost_mode: args.ghost_mode.into(),
         drop: match (args.drop, &args.gap_source) {
             (Drop::None, _) => None,
@@ -232,7 +235,7 @@ fn publish(table: &str, report: &impl serde::Serialize, json: Option<&std::path:
 }
 
 fn fill(args: FillArgs) -> Result<ExitCode> {
-    let takes = read_takes(&args.takes)?;
+    let takes = read_takes(&args.takes, args.json.as_deref())?;
     let mut model = match args.gaps {
         Gaps::Uniform => GapModel::uniform(args.uniform_fraction, args.max_gap),
         Gaps::Real => {
@@ -275,6 +278,7 @@ fn fill(args: FillArgs) -> Result<ExitCode> {
     }
     let mut refiners = Vec::new();
     for path in &args.model {
+        inputs::protect(&[path])?;
         let bytes = std::fs::read(path).with_context(|| format!("{}", path.display()))?;
         let refiner = locap_nn::Refiner::from_bytes(&bytes, &Default::default())
             .with_context(|| format!("{}", path.display()))?;

@@ -41,7 +41,7 @@ pub struct Args {
     #[arg(long, value_name = "MODEL", num_args = 1.., help_heading = "Filling")]
     model: Vec<PathBuf>,
     /// Neighbours used by EDM (the paper's K).
-    #[arg(long, default_value_t = 6, value_name = "K", help_heading = "Filling")]
+    #[arg(value_parser = crate::values::count(1, 64), long, default_value_t = 6, value_name = "K", help_heading = "Filling")]
     neighbours: usize,
     /// How neighbours are ranked.
     #[arg(long, value_enum, default_value_t = Ranking::Variance, help_heading = "Filling")]
@@ -50,10 +50,10 @@ pub struct Args {
     #[arg(long, value_enum, default_value_t = Switch::On, help_heading = "Outliers")]
     outliers: Switch,
     /// Acceleration prominence that makes a body marker sample an outlier, m/s^2.
-    #[arg(long, default_value_t = OutlierConfig::default().body_threshold_m_s2, value_name = "M_S2", help_heading = "Outliers")]
+    #[arg(value_parser = crate::values::positive, long, default_value_t = OutlierConfig::default().body_threshold_m_s2, value_name = "M_S2", help_heading = "Outliers")]
     body_threshold: f64,
     /// Acceleration prominence that makes a hand marker sample an outlier, m/s^2.
-    #[arg(long, default_value_t = OutlierConfig::default().hand_threshold_m_s2, value_name = "M_S2", help_heading = "Outliers")]
+    #[arg(value_parser = crate::values::positive, long, default_value_t = OutlierConfig::default().hand_threshold_m_s2, value_name = "M_S2", help_heading = "Outliers")]
     hand_threshold: f64,
 }
 
@@ -126,6 +126,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
         Method::Neural => {
             let mut given = Vec::new();
             for path in &args.model {
+                inputs::protect(&[path])?;
                 let bytes = std::fs::read(path).with_context(|| format!("{}", path.display()))?;
                 // Checked once here, so a bad model is a usage error, not a failure of every take.
                 locap_nn::Refiner::from_bytes(&bytes, &Default::default())
@@ -134,7 +135,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
             }
             Models::Given(given)
         }
-        _ if !args.model.is_empty() => bail!("--model is only used with --method neural"),
+        _ if !args.model.is_empty() => return Err(inputs::usage("--model is only used with --method neural")),
         _ => Models::None,
     };
     let files = inputs::expand(&args.inputs, &["c3d"])?;
@@ -187,9 +188,6 @@ impl Models {
 }
 
 fn clean_one(input: &Path, output: &Path, args: &Args, models: &Models) -> Result<Summary> {
-    if input == output {
-        bail!("{}: input and output are the same file; locap never overwrites its input", input.display());
-    }
     let mut file = c3d::read_path(input)?;
     let mut raw = file.to_take().map_err(|e| e.in_file(input))?;
     let swapped = if args.outliers == Switch::On { swaps::detect(&raw, &SwapConfig::default()) } else { Vec::new() };

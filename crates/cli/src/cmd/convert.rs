@@ -23,7 +23,7 @@ pub struct Args {
     #[arg(required = true, num_args = 2.., value_name = "PATH")]
     paths: Vec<PathBuf>,
     /// Output format for batch conversion into a folder: c3d, trc, csv or bvh.
-    #[arg(long, value_name = "EXT", help_heading = "Output")]
+    #[arg(long, value_name = "EXT", value_parser = ["c3d", "trc", "csv", "bvh"], help_heading = "Output")]
     to: Option<String>,
     /// Keep only these frames, as 0-based indices `START..END` (END excluded).
     #[arg(long, value_name = "START..END", value_parser = parse_range, help_heading = "Input")]
@@ -32,7 +32,7 @@ pub struct Args {
     #[arg(long, value_name = "FILE", help_heading = "Input")]
     asf: Option<PathBuf>,
     /// Frame rate of AMC input (AMC files do not record it; CMU captures are 120 Hz).
-    #[arg(long, default_value_t = 120.0, value_name = "HZ", help_heading = "Input")]
+    #[arg(value_parser = crate::values::rate_hz, long, default_value_t = 120.0, value_name = "HZ", help_heading = "Input")]
     amc_rate: f64,
     /// Length unit of BVH files read or written (BVH does not record it).
     #[arg(long, default_value = "cm", value_parser = parse_unit, value_name = "UNIT", help_heading = "Input")]
@@ -58,17 +58,26 @@ pub(crate) fn parse_unit(text: &str) -> Result<LengthUnit, String> {
 
 /// Runs `locap convert`.
 pub fn run(args: Args) -> Result<ExitCode> {
-    let (output, inputs) = args.paths.split_last().context("need an input and an output")?;
+    let (output, inputs) = args.paths.split_last().ok_or_else(|| inputs::usage("need an input and an output"))?;
+    if let Some(asf) = &args.asf {
+        inputs::protect(&[asf])?;
+    }
     let single = inputs.len() == 1 && !inputs[0].is_dir() && !output.is_dir() && args.to.is_none();
     if single {
+        inputs::protect(&[&inputs[0]])?;
+        inputs::check_outputs(std::slice::from_ref(output))?;
         convert(&inputs[0], output, &args)?;
         eprintln!("wrote {}", output.display());
         return Ok(ExitCode::SUCCESS);
     }
-    let ext = args.to.as_deref().context("converting several files needs --to c3d|trc|csv|bvh and an output folder")?;
+    let ext = args
+        .to
+        .as_deref()
+        .ok_or_else(|| inputs::usage("converting several files needs --to c3d|trc|csv|bvh and an output folder"))?;
     let files = inputs::expand(inputs, &["c3d", "trc", "csv", "bvh", "amc"])?;
-    std::fs::create_dir_all(output).with_context(|| format!("{}: cannot create output folder", output.display()))?;
     let targets = inputs::output_paths(&files, output, Some(ext));
+    inputs::check_outputs(&targets)?;
+    std::fs::create_dir_all(output).with_context(|| format!("{}: cannot create output folder", output.display()))?;
     let (_, failed) = crate::run_takes(&files, "converting", |i, input| {
         inputs::create_parent(&targets[i])?;
         convert(input, &targets[i], &args)
@@ -90,9 +99,6 @@ enum Content {
 }
 
 fn convert(input: &Path, output: &Path, args: &Args) -> Result<()> {
-    if input == output {
-        bail!("{}: input and output are the same file; locap never overwrites its input", input.display());
-    }
     let content = match extension(input).as_str() {
         "c3d" => Content::C3d(Box::new(c3d::read_path(input)?)),
         "trc" => Content::Markers(trc::read_trc_path(input)?),

@@ -5,7 +5,7 @@
 //! per-joint and per-gap-length errors, and draws the error by gap length and the error per
 //! joint (`--plots DIR`, SVG and PNG).
 
-use anyhow::{Context, Result, bail};
+use anyhow::{Context, Result};
 use clap::Parser;
 use locap_nn::Refiner;
 use locap_nn::solver::eval::{
@@ -86,6 +86,18 @@ fn write_chart(chart: &Chart, path_stem: &Path) -> Result<()> {
 
 /// Runs `locap eval`.
 pub fn run(args: Args) -> Result<ExitCode> {
+    if args.real.len() != args.reference.len() {
+        return Err(crate::inputs::usage(format!(
+            "--real has {} takes but --reference {} motions; give one reference per take",
+            args.real.len(),
+            args.reference.len()
+        )));
+    }
+    let given = args.models.iter().chain(&args.refiner).chain(&args.real).chain(&args.reference);
+    crate::inputs::protect(&given.map(PathBuf::as_path).collect::<Vec<_>>())?;
+    crate::inputs::check_outputs(args.json.as_slice())?;
+    crate::inputs::expand(std::slice::from_ref(&args.data), &["shard"])?;
+    crate::inputs::check_outputs(args.json.as_slice())?;
     let device = Default::default();
     let mut solvers = Vec::new();
     for path in &args.models {
@@ -94,7 +106,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
     }
     let names: Vec<&String> = solvers.iter().map(|(n, _)| n).collect();
     if (1..names.len()).any(|i| names[..i].contains(&names[i])) {
-        bail!("two models have the same file name; the table names methods by file stem");
+        return Err(crate::inputs::usage("two models have the same file name; the table names methods by file stem"));
     }
     let refiner = match &args.refiner {
         Some(p) => {
@@ -103,13 +115,6 @@ pub fn run(args: Args) -> Result<ExitCode> {
         }
         None => None,
     };
-    if args.real.len() != args.reference.len() {
-        bail!(
-            "--real has {} takes but --reference {} motions; give one reference per take",
-            args.real.len(),
-            args.reference.len()
-        );
-    }
     let data = SolverData::from_path(&args.data)?;
     eprintln!("evaluating {} models on {} takes, {} frames", solvers.len(), data.shards.len(), data.frames());
     let refs: Vec<(String, &Solver)> = solvers.iter().map(|(n, s)| (n.clone(), s)).collect();

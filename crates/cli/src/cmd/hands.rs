@@ -5,7 +5,7 @@
 
 use crate::cmd::layout::write_layout;
 use crate::inputs::{self, read_take};
-use anyhow::Result;
+use anyhow::{Context, Result};
 use clap::Parser;
 use locap_core::LengthUnit;
 use locap_synth::hand::{FingerLimits, Side, fit_art_hand, hand_layout, procedural_fingers};
@@ -23,13 +23,13 @@ pub struct Args {
     #[arg(required = true, value_name = "TAKE", help_heading = "Input")]
     takes: Vec<PathBuf>,
     /// Procedural finger takes to make per hand (on the captured wrist motion).
-    #[arg(long, default_value_t = 0, value_name = "N", help_heading = "Synthesis")]
+    #[arg(value_parser = crate::values::count(0, crate::values::MAX_ITEMS), long, default_value_t = 0, value_name = "N", help_heading = "Synthesis")]
     procedural: usize,
     /// Seed of the procedural motion.
     #[arg(long, default_value_t = 1, help_heading = "Synthesis")]
     seed: u64,
     /// Height of the layout's markers above the bones (back of the hand), mm.
-    #[arg(long, default_value_t = 8.0, value_name = "MM", help_heading = "Synthesis")]
+    #[arg(value_parser = crate::values::positive_length_mm, long, default_value_t = 8.0, value_name = "MM", help_heading = "Synthesis")]
     dorsal_mm: f64,
     /// Output folder: `STEM-left.bvh` (fitted), `STEM-left-proc-NNN.bvh`, `hand-left.toml`, and
     /// the same for the right hand. BVH lengths are in centimetres.
@@ -40,10 +40,26 @@ pub struct Args {
 /// Runs `locap hands`.
 pub fn run(args: Args) -> Result<ExitCode> {
     let files = inputs::expand(&args.takes, &["c3d", "trc"])?;
-    std::fs::create_dir_all(&args.output)?;
+    let stem_of =
+        |path: &std::path::Path| path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+    let mut per_take = Vec::new();
+    for path in &files {
+        for name in ["left", "right"] {
+            per_take.push(args.output.join(format!("{}-{name}.bvh", stem_of(path))));
+            for k in 0..args.procedural {
+                per_take.push(args.output.join(format!("{}-{name}-proc-{:03}.bvh", stem_of(path), k + 1)));
+            }
+        }
+    }
+    inputs::check_outputs(&per_take)?;
+    // Every take fits the same hand model, so each rewrites the layouts: only inputs are checked.
+    inputs::check_outputs(std::slice::from_ref(&args.output.join("hand-left.toml")))?;
+    inputs::check_outputs(std::slice::from_ref(&args.output.join("hand-right.toml")))?;
+    std::fs::create_dir_all(&args.output)
+        .with_context(|| format!("{}: cannot create output folder", args.output.display()))?;
     let (done, failed) = crate::run_takes(&files, "fitting hands", |i, path| {
         let take = read_take(path)?;
-        let stem = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+        let stem = stem_of(path);
         let mut text = String::new();
         for side in [Side::Left, Side::Right] {
             let name = if side == Side::Left { "left" } else { "right" };

@@ -39,7 +39,7 @@ pub struct Args {
     template_frame: Option<usize>,
     /// A template marker matches a first-frame point only within this distance after the
     /// rigid fit (mm).
-    #[arg(long, default_value_t = FitConfig::default().accept_mm, value_name = "MM", help_heading = "Template")]
+    #[arg(value_parser = crate::values::positive_length_mm, long, default_value_t = FitConfig::default().accept_mm, value_name = "MM", help_heading = "Template")]
     fit_distance: f64,
     /// Output C3D file (one input) or folder.
     #[arg(short, long, value_name = "PATH", help_heading = "Output")]
@@ -89,8 +89,11 @@ impl From<MethodArg> for locap_label::Method {
 pub fn run(args: Args) -> Result<ExitCode> {
     let files = inputs::expand(&args.inputs, &["c3d"])?;
     if args.truth.is_some() && files.len() != 1 {
-        bail!("--truth scores one take; {} were given", files.len());
+        return Err(inputs::usage(format!("--truth scores one take; {} were given", files.len())));
     }
+    let auxiliary = [Some(&args.template), args.truth.as_ref(), args.skeleton.as_ref(), args.layout.as_ref()];
+    inputs::protect(&auxiliary.iter().flatten().map(|p| p.as_path()).collect::<Vec<_>>())?;
+    let targets = inputs::targets(&args.inputs, &files, &args.output)?;
     let template_take = c3d::read_path(&args.template)?.to_take().map_err(|e| e.in_file(&args.template))?;
     let template = Template::from_take(&template_take, args.template_frame)
         .with_context(|| format!("{}", args.template.display()))?;
@@ -98,7 +101,6 @@ pub fn run(args: Args) -> Result<ExitCode> {
         (Some(skeleton), Some(layout)) => Some(marker_model(skeleton, layout, &template)?),
         _ => None,
     };
-    let targets = inputs::targets(&args.inputs, &files, &args.output)?;
     let (done, failed) = crate::run_takes(&files, "labeling", |i, input| {
         inputs::create_parent(&targets[i])?;
         label_one(input, &targets[i], &template, model.as_ref(), &args)
@@ -150,9 +152,6 @@ fn label_one(
     model: Option<&MarkerModel>,
     args: &Args,
 ) -> Result<String> {
-    if input == output {
-        bail!("{}: input and output are the same file; locap never overwrites its input", input.display());
-    }
     let mut file = c3d::read_path(input)?;
     let raw = file.to_take().map_err(|e| e.in_file(input))?;
     let frames = PointFrames::from_take(&raw);

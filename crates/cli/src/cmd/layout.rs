@@ -2,7 +2,7 @@
 //! markers on a driven body, and locap needs those placements from real captures).
 
 use crate::inputs::{self, MotionOptions, read_motion, read_take};
-use anyhow::{Context, Result, bail};
+use anyhow::{Context, Result};
 use clap::{Parser, Subcommand, ValueEnum};
 use locap_synth::Layout;
 use locap_synth::calibrate::{CalibrationOptions, calibrate};
@@ -44,7 +44,7 @@ pub struct FitArgs {
     take: PathBuf,
     /// Pull towards the initial offsets (per mm^2 of offset change, against mm^2 of distance
     /// error): fixes where each joint's group of markers sits, which distances cannot.
-    #[arg(long, default_value_t = 0.01, value_name = "LAMBDA", help_heading = "Fit")]
+    #[arg(value_parser = crate::values::non_negative, long, default_value_t = 0.01, value_name = "LAMBDA", help_heading = "Fit")]
     prior_weight: f64,
     /// Fitted layout to write (TOML; JSON if the name ends in .json).
     #[arg(short, long, value_name = "FILE", help_heading = "Output")]
@@ -76,7 +76,7 @@ pub struct CalibrateArgs {
     #[arg(long, value_name = "ASF", help_heading = "Input")]
     asf: Option<PathBuf>,
     /// Millimetres per BVH unit (CMU BVH: 25.4 / 0.45).
-    #[arg(long, default_value_t = 25.4 / 0.45, value_name = "MM", help_heading = "Input")]
+    #[arg(value_parser = crate::values::positive, long, default_value_t = 25.4 / 0.45, value_name = "MM", help_heading = "Input")]
     bvh_mm_per_unit: f64,
     /// How the takes' lab frame relates to the motion frame.
     #[arg(long, value_enum, default_value_t = Lab::ZUpFromYUp, help_heading = "Input")]
@@ -120,6 +120,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
 
 /// Reads a layout file (TOML, or JSON by extension).
 pub fn read_layout(path: &Path) -> Result<Layout> {
+    inputs::protect(&[path])?;
     let text = std::fs::read_to_string(path).with_context(|| format!("{}: cannot read layout", path.display()))?;
     let layout =
         if inputs::has_extension(path, &["json"]) { Layout::from_json(&text) } else { Layout::from_toml(&text) };
@@ -136,8 +137,15 @@ pub fn write_layout(layout: &Layout, path: &Path) -> Result<()> {
 
 fn run_calibrate(args: CalibrateArgs) -> Result<ExitCode> {
     if args.takes.len() != args.motions.len() {
-        bail!("give one --motion per --take ({} takes, {} motions)", args.takes.len(), args.motions.len());
+        return Err(inputs::usage(format!(
+            "give one --motion per --take ({} takes, {} motions)",
+            args.takes.len(),
+            args.motions.len()
+        )));
     }
+    let given = [&args.layout].into_iter().chain(&args.takes).chain(&args.motions).chain(&args.asf);
+    inputs::protect(&given.map(PathBuf::as_path).collect::<Vec<_>>())?;
+    inputs::check_outputs(&[Some(args.output.clone()), args.report.clone()].into_iter().flatten().collect::<Vec<_>>())?;
     let layout = read_layout(&args.layout)?;
     let options = MotionOptions { asf: args.asf.clone(), bvh_mm_per_unit: args.bvh_mm_per_unit, amc_rate_hz: 120.0 };
     let lab: LabFrame = args.lab.into();
@@ -195,6 +203,8 @@ fn run_calibrate(args: CalibrateArgs) -> Result<ExitCode> {
 }
 
 fn run_fit(args: FitArgs) -> Result<ExitCode> {
+    inputs::protect(&[&args.layout, &args.take])?;
+    inputs::check_outputs(&[Some(args.output.clone()), args.report.clone()].into_iter().flatten().collect::<Vec<_>>())?;
     let layout = read_layout(&args.layout)?;
     let take = read_take(&args.take)?;
     let options = DistanceFitOptions { prior_weight: args.prior_weight, ..Default::default() };

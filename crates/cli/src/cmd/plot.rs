@@ -77,6 +77,12 @@ pub fn run(args: Args) -> Result<ExitCode> {
 
 fn gaps(args: GapsArgs) -> Result<ExitCode> {
     let files = inputs::expand(&args.inputs, &["c3d", "trc", "csv"])?;
+    let ext = match args.format {
+        ImageFormat::Png => "png",
+        ImageFormat::Svg => "svg",
+    };
+    let names = ["gap-lengths", "occlusion-rates"];
+    inputs::check_outputs(&names.map(|name| args.output.join(format!("{name}.{ext}"))))?;
     let (done, failed) = crate::run_takes(&files, "reading takes", |_, input| {
         let (take, _) = crate::cmd::view::read_take(input)?;
         Ok(locap_core::GapStatistics::of_take(&take))
@@ -120,7 +126,9 @@ fn gaps(args: GapsArgs) -> Result<ExitCode> {
 fn fill(args: FillArgs) -> Result<ExitCode> {
     let ext = args.output.extension().and_then(|e| e.to_str()).unwrap_or_default();
     let format = Format::from_extension(ext)
-        .with_context(|| format!("{}: the output must end in .png or .svg", args.output.display()))?;
+        .ok_or_else(|| inputs::usage(format!("{}: the output must end in .png or .svg", args.output.display())))?;
+    inputs::protect(&[&args.report])?;
+    inputs::check_outputs(std::slice::from_ref(&args.output))?;
     let text =
         std::fs::read_to_string(&args.report).with_context(|| format!("{}: cannot read", args.report.display()))?;
     let report: FillBenchReport = serde_json::from_str(&text)

@@ -9,7 +9,7 @@
 //! the CMU 41-marker set on the CMU ASF skeleton, built into the binary).
 
 use crate::inputs;
-use anyhow::{Context, Result, bail};
+use anyhow::{Context, Result};
 use clap::Parser;
 use locap_core::LengthUnit;
 use locap_nn::Refiner;
@@ -57,11 +57,18 @@ struct Solved {
 
 /// Where each input's output goes: `output` itself for one named file, else a mirror of the
 /// inputs under the folder `output` with `extension`.
+/// A named file must have that extension: `-o x.glb` must not silently get a BVH.
 fn outputs(given: &[PathBuf], files: &[PathBuf], output: &Path, extension: &str) -> Result<Vec<PathBuf>> {
     if files.len() == 1 && given.len() == 1 && !given[0].is_dir() && !output.is_dir() {
+        if !inputs::has_extension(output, &[extension]) {
+            return Err(inputs::usage(format!(
+                "{}: this output is written as {}; name it .{extension} (or give a folder)",
+                output.display(),
+                extension.to_ascii_uppercase()
+            )));
+        }
         return Ok(vec![output.to_path_buf()]);
     }
-    std::fs::create_dir_all(output).with_context(|| format!("{}: cannot create output folder", output.display()))?;
     Ok(inputs::output_paths(files, output, Some(extension)))
 }
 
@@ -71,6 +78,8 @@ fn read_model(path: &Path) -> Result<Vec<u8>> {
 
 /// Runs `locap solve`.
 pub fn run(args: Args) -> Result<ExitCode> {
+    let auxiliary = [args.model.as_ref(), args.refiner.as_ref()];
+    inputs::protect(&auxiliary.iter().flatten().map(|p| p.as_path()).collect::<Vec<_>>())?;
     let model = match &args.model {
         Some(p) => read_model(p)?,
         None => DEFAULT_MODEL.to_vec(),
@@ -90,15 +99,18 @@ pub fn run(args: Args) -> Result<ExitCode> {
         Some(p) => Some(outputs(&args.inputs, &files, p, "c3d")?),
         None => None,
     };
+    inputs::check_outputs(&[targets.clone(), marker_targets.clone().unwrap_or_default()].concat())?;
     let started = std::time::Instant::now();
     let (done, failed) = crate::run_takes(&files, "solving", |i, input| {
         let marker_target = marker_targets.as_ref().map(|t| t[i].as_path());
-        for out in std::iter::once(targets[i].as_path()).chain(marker_target) {
-            if out == input {
-                bail!("{}: input and output are the same file; locap never overwrites its input", input.display());
-            }
-        }
-        let take = inputs::read_take(input)?;
+        // A C3D input is kept whole, so the cleaned markers keep its parameters (subjects,
+        // trial, events, ...) and analog data.
+        let c3d_input =
+            if inputs::has_extension(input, &["trc"]) { None } else { Some(locap_io::c3d::read_path(input)?) };
+        let take = match &c3d_input {
+            Some(file) => file.to_take().map_err(|e| e.in_file(input))?,
+            None => inputs::read_take(input)?,
+        };
         let t0 = std::time::Instant::now();
         // One solver per job: a burn module is not shared between threads.
         let device = Default::default();
@@ -117,7 +129,14 @@ pub fn run(args: Args) -> Result<ExitCode> {
         locap_io::bvh::write_bvh_path(&motion, LengthUnit::Centimetre, &targets[i])?;
         if let Some(path) = marker_target {
             inputs::create_parent(path)?;
-            locap_io::c3d::write_path(&locap_io::c3d::C3dFile::from_take(&cleaned.filled.take)?, path)?;
+            let file = match c3d_input {
+                Some(mut file) => {
+                    file.set_take(&cleaned.filled.take).map_err(|e| e.in_file(input))?;
+                    file
+                }
+                None => locap_io::c3d::C3dFile::from_take(&cleaned.filled.take)?,
+            };
+            locap_io::c3d::write_path(&file, path)?;
         }
         Ok(Solved {
             target: targets[i].clone(),

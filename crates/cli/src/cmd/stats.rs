@@ -48,6 +48,7 @@ pub fn bin_label(b: usize) -> String {
 /// Runs `locap stats`.
 pub fn run(args: Args) -> Result<ExitCode> {
     let files = inputs::expand(&args.takes, &["c3d", "trc"])?;
+    inputs::check_outputs(std::slice::from_ref(&args.output))?;
     let (done, failed) =
         crate::run_takes(&files, "measuring gaps", |_, path| Ok(GapStatistics::of_take(&read_take(path)?)));
     let stats: Vec<&GapStatistics> = done.iter().map(|(_, s)| s).collect();

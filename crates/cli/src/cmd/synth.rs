@@ -5,7 +5,7 @@
 use crate::cmd::layout::{Lab, read_layout};
 use crate::cmd::stats::{bin_label, binned};
 use crate::inputs::{self, MotionOptions, read_motion, read_take};
-use anyhow::{Context, Result, bail};
+use anyhow::{Context, Result};
 use clap::{Parser, ValueEnum};
 use locap_core::gaps::add_histogram;
 use locap_core::{GapStatistics, LengthUnit};
@@ -34,10 +34,10 @@ pub struct Args {
     #[arg(long, value_name = "ASF", help_heading = "Input")]
     asf: Option<PathBuf>,
     /// Millimetres per BVH unit (CMU BVH: 25.4 / 0.45).
-    #[arg(long, default_value_t = 25.4 / 0.45, value_name = "MM", help_heading = "Input")]
+    #[arg(value_parser = crate::values::positive, long, default_value_t = 25.4 / 0.45, value_name = "MM", help_heading = "Input")]
     bvh_mm_per_unit: f64,
     /// Frame rate of AMC files, Hz.
-    #[arg(long, default_value_t = 120.0, value_name = "HZ", help_heading = "Input")]
+    #[arg(value_parser = crate::values::rate_hz, long, default_value_t = 120.0, value_name = "HZ", help_heading = "Input")]
     amc_rate: f64,
     /// Real occlusion statistics to corrupt with: JSON (`locap stats`, or the LocalMoCap
     /// paper's) or takes with real gaps. Without it, only clean markers are written.
@@ -47,22 +47,22 @@ pub struct Args {
     #[arg(long, value_enum, default_value_t = Mode::Eq6, help_heading = "Augmentation")]
     mode: Mode,
     /// Overall occlusion probability p_occ (default: the statistics' own).
-    #[arg(long, value_name = "P", help_heading = "Augmentation")]
+    #[arg(value_parser = crate::values::fraction, long, value_name = "P", help_heading = "Augmentation")]
     p_occ: Option<f64>,
     /// Use the paper's floor for Eq. 6 gap counts instead of unbiased stochastic rounding.
     #[arg(long, help_heading = "Augmentation")]
     floor: bool,
     /// Longest gap generated, frames.
-    #[arg(long, default_value_t = 999, value_name = "FRAMES", help_heading = "Augmentation")]
+    #[arg(value_parser = crate::values::count(1, 1 << 24), long, default_value_t = 999, value_name = "FRAMES", help_heading = "Augmentation")]
     max_gap: usize,
     /// Probability that a visible sample is shifted.
-    #[arg(long, default_value_t = 0.005, value_name = "P", help_heading = "Augmentation")]
+    #[arg(value_parser = crate::values::fraction, long, default_value_t = 0.005, value_name = "P", help_heading = "Augmentation")]
     p_shift: f64,
     /// Largest shift per axis, mm (offsets are U(-sigma, sigma)).
-    #[arg(long, default_value_t = 50.0, value_name = "MM", help_heading = "Augmentation")]
+    #[arg(value_parser = crate::values::length_mm, long, default_value_t = 50.0, value_name = "MM", help_heading = "Augmentation")]
     shift_sigma_mm: f64,
     /// Output frame rate, Hz (default: the motion's).
-    #[arg(long, value_name = "HZ", help_heading = "Synthesis")]
+    #[arg(value_parser = crate::values::rate_hz, long, value_name = "HZ", help_heading = "Synthesis")]
     rate: Option<f64>,
     /// Seed: the same seed and inputs give the same files.
     #[arg(long, default_value_t = 1, help_heading = "Synthesis")]
@@ -141,6 +141,7 @@ pub(crate) fn read_model(sources: &[PathBuf], max_gap: usize) -> Result<GapModel
     let mut models = Vec::new();
     for source in sources {
         if inputs::has_extension(source, &["json"]) {
+            inputs::protect(&[source])?;
             let text = std::fs::read_to_string(source).with_context(|| format!("{}", source.display()))?;
             models.push(GapModel::from_json(&text).with_context(|| format!("{}", source.display()))?);
         } else {
@@ -164,6 +165,8 @@ pub(crate) fn read_model(sources: &[PathBuf], max_gap: usize) -> Result<GapModel
 /// Runs `locap synth`.
 pub fn run(args: Args) -> Result<ExitCode> {
     let files = inputs::expand(&args.motions, &["bvh", "amc"])?;
+    let auxiliary = [args.layout.as_ref(), args.asf.as_ref()];
+    inputs::protect(&auxiliary.iter().flatten().map(|p| p.as_path()).collect::<Vec<_>>())?;
     let layout = match &args.layout {
         Some(path) => read_layout(path)?,
         None => Layout::cmu41(),
@@ -188,11 +191,13 @@ pub fn run(args: Args) -> Result<ExitCode> {
     if let Some(p) = args.p_occ
         && !(0.0..0.95).contains(&p)
     {
-        bail!("--p-occ {p} is out of range (0 to 0.95)");
+        return Err(inputs::usage(format!("--p-occ {p} is out of range (0 to 0.95)")));
     }
     let options =
         MotionOptions { asf: args.asf.clone(), bvh_mm_per_unit: args.bvh_mm_per_unit, amc_rate_hz: args.amc_rate };
     let targets = inputs::output_paths(&files, &args.output, None);
+    let written: Vec<PathBuf> = targets.iter().flat_map(|t| output_names(t, args.format)).collect();
+    inputs::check_outputs(&[written, vec![args.output.join("summary.json")]].concat())?;
     let started = std::time::Instant::now();
     let (done, failed) = crate::run_takes(&files, "synthesizing", |i, path| {
         // One independent stream per take, so results do not depend on scheduling.
@@ -307,6 +312,25 @@ fn summary_table(s: &Summary, augmented: bool, mode: Mode) -> String {
     out
 }
 
+/// What one motion gives: the clean and the observed markers, the motion, the shard.
+const SUFFIXES: [&str; 4] = [".clean.c3d", ".c3d", ".bvh", ".shard"];
+
+/// `target`'s stem with `suffix` (`walk.bvh` -> `walk.clean.c3d`).
+fn with_suffix(target: &Path, suffix: &str) -> PathBuf {
+    let stem = target.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+    target.with_file_name(format!("{stem}{suffix}"))
+}
+
+/// Every file [`write_outputs`] writes for `target` in `format`.
+fn output_names(target: &Path, format: Format) -> Vec<PathBuf> {
+    let suffixes = match format {
+        Format::C3d => &SUFFIXES[..3],
+        Format::Shard => &SUFFIXES[3..],
+        Format::Both => &SUFFIXES[..],
+    };
+    suffixes.iter().map(|s| with_suffix(target, s)).collect()
+}
+
 fn write_outputs(
     target: &Path,
     clean: &locap_core::Take,
@@ -316,15 +340,14 @@ fn write_outputs(
     format: Format,
 ) -> Result<()> {
     inputs::create_parent(target)?;
-    let stem = target.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
-    let with = |suffix: &str| target.with_file_name(format!("{stem}{suffix}"));
+    let with = |suffix: &str| with_suffix(target, suffix);
     if matches!(format, Format::C3d | Format::Both) {
-        locap_io::c3d::write_path(&locap_io::c3d::C3dFile::from_take(clean)?, &with(".clean.c3d"))?;
-        locap_io::c3d::write_path(&locap_io::c3d::C3dFile::from_take(observed)?, &with(".c3d"))?;
-        locap_io::bvh::write_bvh_path(motion, LengthUnit::Centimetre, &with(".bvh"))?;
+        locap_io::c3d::write_path(&locap_io::c3d::C3dFile::from_take(clean)?, &with(SUFFIXES[0]))?;
+        locap_io::c3d::write_path(&locap_io::c3d::C3dFile::from_take(observed)?, &with(SUFFIXES[1]))?;
+        locap_io::bvh::write_bvh_path(motion, LengthUnit::Centimetre, &with(SUFFIXES[2]))?;
     }
     if matches!(format, Format::Shard | Format::Both) {
-        locap_io::atomic::write_atomically(&with(".shard"), |w| {
+        locap_io::atomic::write_atomically(&with(SUFFIXES[3]), |w| {
             locap_synth::shard::write_shard(w, clean, observed, Some(motion), lab)
                 .map_err(|e| locap_io::Error::from(std::io::Error::other(e)))
         })?;

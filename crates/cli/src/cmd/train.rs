@@ -5,12 +5,12 @@
 //! Writes the model file (`--out`), its loss curve beside it (`OUT.loss.svg`) and checkpoints
 //! (`OUT.checkpoints/`, every `--checkpoint-every` steps); `--resume` continues from them.
 
-use anyhow::{Context, Result, bail};
+use anyhow::{Context, Result};
 use clap::{Parser, Subcommand};
 use locap_nn::TrainConfig;
 use locap_nn::train::{Checkpoints, TrainingData, train};
 use locap_synth::gap_model::GapModel;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::process::ExitCode;
 
 /// Arguments of `locap train`.
@@ -43,31 +43,31 @@ pub struct FillArgs {
     #[arg(long, value_name = "STATS", num_args = 1.., help_heading = "Data")]
     augment: Vec<PathBuf>,
     /// Overall occlusion probability of the corruption.
-    #[arg(long, default_value_t = 0.1, value_name = "P", help_heading = "Data")]
+    #[arg(value_parser = crate::values::fraction, long, default_value_t = 0.1, value_name = "P", help_heading = "Data")]
     p_occ: f64,
     /// Fraction of every take held out for validation.
-    #[arg(long, default_value_t = 0.1, value_name = "F", help_heading = "Data")]
+    #[arg(value_parser = crate::values::fraction, long, default_value_t = 0.1, value_name = "F", help_heading = "Data")]
     validation_fraction: f64,
     /// Training length in epochs (every frame seen once on average per epoch).
-    #[arg(long, value_name = "N", conflicts_with = "steps", help_heading = "Training")]
+    #[arg(value_parser = crate::values::count(1, 1 << 20), long, value_name = "N", conflicts_with = "steps", help_heading = "Training")]
     epochs: Option<usize>,
     /// Training length in steps (default 2000).
-    #[arg(long, value_name = "N", help_heading = "Training")]
+    #[arg(value_parser = crate::values::count(1, 1 << 30), long, value_name = "N", help_heading = "Training")]
     steps: Option<usize>,
     /// Windows per step.
-    #[arg(long, default_value_t = TrainConfig::default().batch, value_name = "N", help_heading = "Training")]
+    #[arg(value_parser = crate::values::count(1, crate::values::MAX_BATCH), long, default_value_t = TrainConfig::default().batch, value_name = "N", help_heading = "Training")]
     batch: usize,
     /// Peak learning rate (Adam; linear warm-up, cosine decay to a tenth).
-    #[arg(long, default_value_t = TrainConfig::default().learning_rate, value_name = "LR", help_heading = "Training")]
+    #[arg(value_parser = crate::values::positive, long, default_value_t = TrainConfig::default().learning_rate, value_name = "LR", help_heading = "Training")]
     lr: f64,
     /// Seed of every random draw (initial weights, windows, corruption).
     #[arg(long, default_value_t = 1, value_name = "S", help_heading = "Training")]
     seed: u64,
     /// Steps between validations.
-    #[arg(long, default_value_t = TrainConfig::default().validate_every, value_name = "N", help_heading = "Training")]
+    #[arg(value_parser = crate::values::count(1, 1 << 30), long, default_value_t = TrainConfig::default().validate_every, value_name = "N", help_heading = "Training")]
     validate_every: usize,
     /// Steps between checkpoints.
-    #[arg(long, default_value_t = TrainConfig::default().checkpoint_every, value_name = "N", help_heading = "Training")]
+    #[arg(value_parser = crate::values::count(1, 1 << 30), long, default_value_t = TrainConfig::default().checkpoint_every, value_name = "N", help_heading = "Training")]
     checkpoint_every: usize,
     /// Continue from the checkpoints of an earlier run with the same output.
     #[arg(long, help_heading = "Training")]
@@ -82,21 +82,21 @@ pub struct FillArgs {
     pooled_centre: bool,
     /// Offsets fade in over this many frames from a gap's captured borders, so filled samples
     /// join the captured ones without a step (0: no fade).
-    #[arg(long, default_value_t = TrainConfig::default().taper_frames, value_name = "FRAMES", help_heading = "Network")]
+    #[arg(value_parser = crate::values::count(0, 1 << 20), long, default_value_t = TrainConfig::default().taper_frames, value_name = "FRAMES", help_heading = "Network")]
     taper: usize,
     /// The fade the model applies at inference, if not `--taper` (a network trained with a
     /// short fade may fill better with a longer one; with `--resume` on a finished run this
     /// rewrites the model without training).
-    #[arg(long, value_name = "FRAMES", help_heading = "Network")]
+    #[arg(value_parser = crate::values::count(0, 1 << 20), long, value_name = "FRAMES", help_heading = "Network")]
     inference_taper: Option<usize>,
     /// Frames per window.
-    #[arg(long, default_value_t = TrainConfig::default().window, value_name = "FRAMES", help_heading = "Network")]
+    #[arg(value_parser = crate::values::count(2, 1 << 16), long, default_value_t = TrainConfig::default().window, value_name = "FRAMES", help_heading = "Network")]
     window: usize,
     /// Graph-convolution features per marker.
-    #[arg(long, default_value_t = TrainConfig::default().channels, value_name = "N", help_heading = "Network")]
+    #[arg(value_parser = crate::values::count(1, crate::values::MAX_WIDTH), long, default_value_t = TrainConfig::default().channels, value_name = "N", help_heading = "Network")]
     channels: usize,
     /// LSTM hidden size per direction.
-    #[arg(long, default_value_t = TrainConfig::default().hidden, value_name = "N", help_heading = "Network")]
+    #[arg(value_parser = crate::values::count(1, crate::values::MAX_WIDTH), long, default_value_t = TrainConfig::default().hidden, value_name = "N", help_heading = "Network")]
     hidden: usize,
     /// The model file to write.
     #[arg(long, default_value = "refiner.locapnn", value_name = "MODEL", help_heading = "Output")]
@@ -111,16 +111,16 @@ pub fn run(args: Args) -> Result<ExitCode> {
     }
 }
 
-pub(crate) fn with_suffix(path: &Path, suffix: &str) -> PathBuf {
-    let mut name = path.file_name().map(|n| n.to_os_string()).unwrap_or_default();
-    name.push(suffix);
-    path.with_file_name(name)
-}
-
 fn fill(args: FillArgs) -> Result<ExitCode> {
     if args.out.is_dir() {
-        bail!("--out {} is a folder; give the model file to write", args.out.display());
+        return Err(crate::inputs::usage(format!(
+            "--out {} is a folder; give the model file to write",
+            args.out.display()
+        )));
     }
+    // Only to protect the training files and refuse an output among them before any work.
+    crate::inputs::expand(&args.data, &["shard", "c3d"])?;
+    crate::inputs::check_outputs(&[args.out.clone(), crate::inputs::with_suffix(&args.out, ".loss.svg")])?;
     let data = TrainingData::from_paths(&args.data)?;
     let frame = locap_nn::features::frame_for(&data.markers).with_context(|| {
         format!(
@@ -172,7 +172,7 @@ fn fill(args: FillArgs) -> Result<ExitCode> {
             .progress_chars("=> "),
     );
     let mut validation = String::new();
-    let checkpoints = Checkpoints { dir: with_suffix(&args.out, ".checkpoints"), resume: args.resume };
+    let checkpoints = Checkpoints { dir: crate::inputs::with_suffix(&args.out, ".checkpoints"), resume: args.resume };
     let (refiner, report) = train(&data, &config, &gap_model, Some(&checkpoints), &mut |p| {
         if let Some(v) = p.validation_mm {
             validation = format!(", validation {v:.2} mm");
@@ -184,7 +184,7 @@ fn fill(args: FillArgs) -> Result<ExitCode> {
     let bytes = refiner.to_bytes()?;
     crate::inputs::create_parent(&args.out)?;
     crate::inputs::write_bytes(&args.out, &bytes)?;
-    let curve_path = with_suffix(&args.out, ".loss.svg");
+    let curve_path = crate::inputs::with_suffix(&args.out, ".loss.svg");
     let curve = report.loss_curve("locap train fill")?.render(locap_view::plot::Format::Svg, (800, 480))?;
     crate::inputs::write_bytes(&curve_path, &curve)?;
     let last = |v: &[(usize, f64)]| v.last().map(|x| format!("{:.2} mm", x.1)).unwrap_or_else(|| "-".into());

@@ -7,7 +7,7 @@
 //! marker convolutions (`no-marker-conv`) or Holden (2018)'s residual MLP (`mlp`), all with the
 //! same data, loss and budget so `locap eval` compares like with like.
 
-use anyhow::{Result, bail};
+use anyhow::Result;
 use clap::{Parser, ValueEnum};
 use locap_clean::local_frame::FrameDefinition;
 use locap_nn::solver::{SolverData, SolverTrainConfig, Variant, train_solver};
@@ -57,7 +57,7 @@ pub struct SolveArgs {
     #[arg(long, value_name = "DIR", help_heading = "Data")]
     data: PathBuf,
     /// Fraction of every take held out for validation.
-    #[arg(long, default_value_t = 0.1, value_name = "F", help_heading = "Data")]
+    #[arg(value_parser = crate::values::fraction, long, default_value_t = 0.1, value_name = "F", help_heading = "Data")]
     validation_fraction: f64,
     /// Network.
     #[arg(long, value_enum, default_value_t = Arch::Graph, help_heading = "Network")]
@@ -66,22 +66,22 @@ pub struct SolveArgs {
     #[arg(long, value_enum, default_value_t = Frame::Waist, help_heading = "Network")]
     frame: Frame,
     /// Mean marker-joint distance that links a marker to a joint, mm (about 40 for hands).
-    #[arg(long, default_value_t = SolverTrainConfig::default().link_threshold_mm, value_name = "MM", help_heading = "Network")]
+    #[arg(value_parser = crate::values::positive_length_mm, long, default_value_t = SolverTrainConfig::default().link_threshold_mm, value_name = "MM", help_heading = "Network")]
     link_mm: f64,
     /// Features per marker and joint node.
-    #[arg(long, default_value_t = SolverTrainConfig::default().channels, value_name = "N", help_heading = "Network")]
+    #[arg(value_parser = crate::values::count(1, crate::values::MAX_WIDTH), long, default_value_t = SolverTrainConfig::default().channels, value_name = "N", help_heading = "Network")]
     channels: usize,
     /// Features of the global node (the MLP is 4 times as wide).
-    #[arg(long, default_value_t = SolverTrainConfig::default().global, value_name = "N", help_heading = "Network")]
+    #[arg(value_parser = crate::values::count(1, crate::values::MAX_WIDTH), long, default_value_t = SolverTrainConfig::default().global, value_name = "N", help_heading = "Network")]
     global: usize,
     /// Training steps.
-    #[arg(long, default_value_t = SolverTrainConfig::default().steps, value_name = "N", help_heading = "Training")]
+    #[arg(value_parser = crate::values::count(1, 1 << 30), long, default_value_t = SolverTrainConfig::default().steps, value_name = "N", help_heading = "Training")]
     steps: usize,
     /// Frames per step.
-    #[arg(long, default_value_t = SolverTrainConfig::default().batch, value_name = "N", help_heading = "Training")]
+    #[arg(value_parser = crate::values::count(1, crate::values::MAX_BATCH), long, default_value_t = SolverTrainConfig::default().batch, value_name = "N", help_heading = "Training")]
     batch: usize,
     /// Peak learning rate (Adam; linear warm-up, cosine decay to a tenth).
-    #[arg(long, default_value_t = SolverTrainConfig::default().learning_rate, value_name = "LR", help_heading = "Training")]
+    #[arg(value_parser = crate::values::positive, long, default_value_t = SolverTrainConfig::default().learning_rate, value_name = "LR", help_heading = "Training")]
     lr: f64,
     /// Seed of every random draw.
     #[arg(long, default_value_t = 1, value_name = "S", help_heading = "Training")]
@@ -103,8 +103,14 @@ pub struct SolveArgs {
 /// Runs `locap train solve`.
 pub fn run(args: SolveArgs) -> Result<ExitCode> {
     if args.out.is_dir() {
-        bail!("--out {} is a folder; give the model file to write", args.out.display());
+        return Err(crate::inputs::usage(format!(
+            "--out {} is a folder; give the model file to write",
+            args.out.display()
+        )));
     }
+    // Only to protect the training files and refuse an output among them before any work.
+    crate::inputs::expand(std::slice::from_ref(&args.data), &["shard"])?;
+    crate::inputs::check_outputs(&[args.out.clone(), crate::inputs::with_suffix(&args.out, ".loss.svg")])?;
     let data = SolverData::from_path(&args.data)?;
     let config = SolverTrainConfig {
         variant: args.arch.into(),
@@ -137,7 +143,7 @@ pub fn run(args: SolveArgs) -> Result<ExitCode> {
     );
     let bar = crate::progress(config.steps.max(2), "training");
     let mut validation = String::new();
-    let checkpoints = Checkpoints { dir: super::train::with_suffix(&args.out, ".checkpoints"), resume: args.resume };
+    let checkpoints = Checkpoints { dir: crate::inputs::with_suffix(&args.out, ".checkpoints"), resume: args.resume };
     let (solver, report) = train_solver(&data, &config, Some(&checkpoints), &mut |p| {
         if let Some((jpe, joe)) = p.validation {
             validation = format!(", validation JPE {jpe:.1} mm, JOE {joe:.2} deg");
@@ -149,7 +155,7 @@ pub fn run(args: SolveArgs) -> Result<ExitCode> {
     let bytes = solver.to_bytes()?;
     crate::inputs::create_parent(&args.out)?;
     crate::inputs::write_bytes(&args.out, &bytes)?;
-    let curve_path = super::train::with_suffix(&args.out, ".loss.svg");
+    let curve_path = crate::inputs::with_suffix(&args.out, ".loss.svg");
     let curve = report.loss_curve("locap train solve")?.render(locap_view::plot::Format::Svg, (800, 480))?;
     crate::inputs::write_bytes(&curve_path, &curve)?;
     let last = |v: &[(usize, f64)], unit: &str| v.last().map(|x| format!("{:.2} {unit}", x.1)).unwrap_or("-".into());

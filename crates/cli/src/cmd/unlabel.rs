@@ -5,7 +5,7 @@
 
 use crate::cmd::bench::{Drop, GhostModeArg, gap_model_from, parse_ghosts};
 use crate::inputs;
-use anyhow::{Result, bail};
+use anyhow::Result;
 use clap::Parser;
 use locap_eval::gap_model::GapModel;
 use locap_eval::label_bench::GhostCount;
@@ -26,13 +26,13 @@ pub struct Args {
     #[arg(short, long, value_name = "PATH", help_heading = "Output")]
     output: PathBuf,
     /// Ghost points per frame: a number, or `M` for as many as the take has markers.
-    #[arg(long, default_value = "0", value_name = "N", help_heading = "Corruption")]
-    ghosts: String,
+    #[arg(long, default_value = "0", value_name = "N", value_parser = parse_ghosts, help_heading = "Corruption")]
+    ghosts: GhostCount,
     /// Where ghosts appear.
     #[arg(long, value_enum, default_value_t = GhostModeArg::Near, help_heading = "Corruption")]
     ghost_mode: GhostModeArg,
     /// Output frame rate (Hz); default: the take's own.
-    #[arg(long, value_name = "HZ", help_heading = "Corruption")]
+    #[arg(long, value_name = "HZ", value_parser = crate::values::rate_hz, help_heading = "Corruption")]
     fps: Option<f64>,
     /// Extra occlusions with real statistics, or none.
     #[arg(long, value_enum, default_value_t = Drop::None, help_heading = "Corruption")]
@@ -48,11 +48,13 @@ pub struct Args {
 /// Runs `locap unlabel`.
 pub fn run(args: Args) -> Result<ExitCode> {
     let files = inputs::expand(&args.inputs, &["c3d"])?;
-    let targets = inputs::targets(&args.inputs, &files, &args.output)?;
-    let ghosts = parse_ghosts(&args.ghosts)?;
-    if args.fps.is_some_and(|f| !(f > 0.0)) {
-        bail!("--fps must be positive");
+    if let Some(source) = &args.gap_source {
+        inputs::protect(&[source])?;
     }
+    let targets = inputs::targets(&args.inputs, &files, &args.output)?;
+    let truths: Vec<PathBuf> = targets.iter().map(|t| truth_path(t)).collect();
+    inputs::check_outputs(&[targets.clone(), truths].concat())?;
+    let ghosts = args.ghosts;
     let drop = match (args.drop, &args.gap_source) {
         (Drop::None, _) => None,
         (Drop::Real, None) => Some(GapModel::builtin()),
@@ -79,9 +81,6 @@ fn unlabel_one(
     ghosts: GhostCount,
     drop: &Option<GapModel>,
 ) -> Result<String> {
-    if input == output {
-        bail!("{}: input and output are the same file; locap never overwrites its input", input.display());
-    }
     let mut file = c3d::read_path(input)?;
     let take = file.to_take().map_err(|e| e.in_file(input))?;
     let markers = take.markers().iter().filter(|m| !m.is_unlabeled()).count();

@@ -6,7 +6,7 @@
 //! truth) and the distance to it per frame. No network is needed to open it.
 
 use crate::inputs;
-use anyhow::{Context, Result, bail};
+use anyhow::{Context, Result};
 use clap::{Parser, ValueEnum};
 use locap_core::{LengthUnit, Take, UpAxis};
 use locap_io::{bvh, c3d, csv, trc};
@@ -57,14 +57,17 @@ pub fn run(args: Args) -> Result<ExitCode> {
     let files = inputs::expand(&args.inputs, &["c3d", "trc", "csv"])?;
     let single = files.len() == 1 && args.inputs.len() == 1 && !args.inputs[0].is_dir() && !args.output.is_dir();
     if !single && (args.motion.is_some() || args.compare.is_some()) {
-        bail!("--motion and --compare go with a single take ({} given)", files.len());
+        return Err(inputs::usage(format!("--motion and --compare go with a single take ({} given)", files.len())));
     }
+    let auxiliary = [args.motion.as_ref(), args.compare.as_ref()];
+    inputs::protect(&auxiliary.iter().flatten().map(|p| p.as_path()).collect::<Vec<_>>())?;
+    let targets =
+        if single { vec![args.output.clone()] } else { inputs::output_paths(&files, &args.output, Some("html")) };
+    inputs::check_outputs(&targets)?;
     if !single {
         std::fs::create_dir_all(&args.output)
             .with_context(|| format!("{}: cannot create output folder", args.output.display()))?;
     }
-    let targets =
-        if single { vec![args.output.clone()] } else { inputs::output_paths(&files, &args.output, Some("html")) };
     let motion = match &args.motion {
         Some(path) => Some(bvh::read_bvh_path(path, args.bvh_unit)?),
         None => None,
@@ -76,9 +79,6 @@ pub fn run(args: Args) -> Result<ExitCode> {
         None => None,
     };
     let (done, failed) = crate::run_takes(&files, "writing pages", |i, input| {
-        if input == targets[i] {
-            bail!("{}: input and output are the same file; locap never overwrites its input", input.display());
-        }
         inputs::create_parent(&targets[i])?;
         let (take, states) = read_take(input)?;
         let up = match args.motion_up {
