@@ -36,6 +36,13 @@ use locap_core::{GlobalPose, Quat, Skeleton, Vec3};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
+/// Largest offset of a marker from its joint, per axis, mm: markers sit on the skin or on a
+/// wand, centimetres from the bone; 2 m allows any real marker set.
+pub const MAX_OFFSET_MM: f64 = 2000.0;
+
+/// Largest soft-tissue factor (1 is the default skin motion; 10 is already a loose cloth marker).
+pub const MAX_SOFT_TISSUE: f64 = 100.0;
+
 /// Errors reading or binding a layout.
 #[derive(Debug, thiserror::Error, PartialEq)]
 pub enum LayoutError {
@@ -167,7 +174,10 @@ impl Layout {
         Layout::from_toml(TOML).unwrap_or_else(|e| panic!("built-in layout cmu41.toml: {e}"))
     }
 
-    /// Checks names, numbers and weights.
+    /// Checks names, numbers and weights. Offsets and the soft-tissue factor must be finite
+    /// and at most [`MAX_OFFSET_MM`] / [`MAX_SOFT_TISSUE`]: a marker metres from its joint is a
+    /// typo, and a value like 1e308 overflows to infinity in the first rotation, which the
+    /// labeler's pose search would chase forever.
     pub fn check(&self) -> Result<(), LayoutError> {
         if self.markers.is_empty() {
             return Err(LayoutError::Empty);
@@ -178,17 +188,18 @@ impl Layout {
                 return Err(LayoutError::DuplicateMarker(m.name.clone()));
             }
             let bad = |what, value| LayoutError::BadNumber { marker: m.name.clone(), what, value };
-            if let Some(v) = m.offset_mm.iter().find(|v| !v.is_finite()) {
+            let out_of_range = |v: &&f64| !(v.is_finite() && v.abs() <= MAX_OFFSET_MM);
+            if let Some(v) = m.offset_mm.iter().find(out_of_range) {
                 return Err(bad("offset_mm", *v));
             }
-            if !(m.soft_tissue.is_finite() && m.soft_tissue >= 0.0) {
+            if !(m.soft_tissue.is_finite() && (0.0..=MAX_SOFT_TISSUE).contains(&m.soft_tissue)) {
                 return Err(bad("soft_tissue", m.soft_tissue));
             }
             if let Some(b) = &m.blend {
                 if !(0.0..=1.0).contains(&b.weight) {
                     return Err(bad("blend.weight", b.weight));
                 }
-                if let Some(v) = b.offset_mm.iter().flatten().find(|v| !v.is_finite()) {
+                if let Some(v) = b.offset_mm.iter().flatten().find(out_of_range) {
                     return Err(bad("blend.offset_mm", *v));
                 }
             }
@@ -329,6 +340,9 @@ blend = { joint = "lower", weight = 0.5 }
         let weight = TEXT.replace("weight = 0.5", "weight = 1.5");
         assert!(matches!(Layout::from_toml(&weight), Err(LayoutError::BadNumber { what: "blend.weight", .. })));
         assert!(matches!(Layout::from_toml("name = 3"), Err(LayoutError::Parse(_))));
+        // An offset of 1e308 (it made `label --layout` hang in the pose search) is refused.
+        let huge = TEXT.replace("[150.0, 40.0, 0.0]", "[1e308, 40.0, 0.0]");
+        assert!(matches!(Layout::from_toml(&huge), Err(LayoutError::BadNumber { what: "offset_mm", .. })));
         let unknown = Layout::from_toml(&TEXT.replace("joint = \"lower\"", "joint = \"shin\"")).unwrap();
         assert!(matches!(unknown.bind(&arm()), Err(LayoutError::UnknownJoint { .. })));
     }
