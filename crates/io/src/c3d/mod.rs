@@ -269,13 +269,27 @@ impl C3dFile {
     }
 
     /// The marker take: positions in millimetres, missing samples explicit (see the module
-    /// doc for the rules), residuals and camera masks kept as [`SampleQuality`].
+    /// doc for the rules), residuals and camera masks kept as [`SampleQuality`]. Fails if the
+    /// file has no valid frame rate (NaN, zero or negative in both `POINT:RATE` and header).
     pub fn to_take(&self) -> Result<Take> {
         let names: Vec<MarkerName> = self.point_labels().iter().map(|l| MarkerName::parse(l)).collect();
         let mm = self.point_unit().mm_per_unit();
         let scale = self.point_scale();
         let rate = self.frame_rate_hz();
-        let rate = if rate.is_finite() && rate > 0.0 { rate } else { 1.0 };
+        // A take needs a time base; inventing one (this used to become 1 Hz) would make every
+        // velocity and gap length downstream wrong without a word. No shared vendor file
+        // lacks a valid rate.
+        if !(rate.is_finite() && rate > 0.0) {
+            return Err(Error::Binary {
+                format: "C3D",
+                section: "header".to_string(),
+                offset: 20,
+                message: format!(
+                    "no frame rate: POINT:RATE is absent or not positive and the header (words 11-12) says {} Hz",
+                    self.header.frame_rate_hz
+                ),
+            });
+        }
         let mut take = Take::empty(names, self.frames, rate)?;
         take.first_frame = self.first_frame();
         take.up_axis = self.up_axis();
