@@ -24,9 +24,14 @@
 //! understands.
 //!
 //! # Robustness
-//! Counts read from the file are checked against the file's size before anything is
-//! allocated, and every malformed structure gives [`Error::Binary`] with the byte offset and
-//! section; no input makes the reader panic (a fuzz target checks this).
+//! Counts read from the file are checked against the file's size and against
+//! [`crate::Limits`] (in [`ReadOptions`]) before anything is allocated, and every malformed
+//! structure gives [`Error::Binary`] with the byte offset and section; no input makes the
+//! reader panic (a fuzz target checks this). What the reader resolved by a choice (header
+//! and parameters disagreeing, a truncated data section, an empty or unknown `POINT:UNITS`
+//! read as millimetres, an invalid `POINT:RATE`) is reported in [`C3dFile::warnings`] for the
+//! caller to show; a file with no valid frame rate at all reads (its parameters and analog
+//! data are not lost) but [`C3dFile::to_take`] refuses it rather than invent one.
 
 mod params;
 mod processor;
