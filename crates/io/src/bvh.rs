@@ -107,14 +107,16 @@ enum Channel {
 
 fn parse_channel(tok: &Token<'_>) -> Result<Channel> {
     let lower = tok.text.to_ascii_lowercase();
-    let (axis, kind) = lower.split_at(lower.len().min(1));
-    let axis = match axis {
-        "x" => 0,
-        "y" => 1,
-        "z" => 2,
+    // Split after the first *character*: a byte split panicked inside a multi-byte first
+    // character (fuzzer-found, `㑑zrotation`).
+    let mut chars = lower.chars();
+    let axis = match chars.next() {
+        Some('x') => 0,
+        Some('y') => 1,
+        Some('z') => 2,
         _ => return Err(err_at(tok, format!("unknown channel {:?}", tok.text))),
     };
-    match kind {
+    match chars.as_str() {
         "position" => Ok(Channel::Position(axis)),
         "rotation" => Ok(Channel::Rotation(axis)),
         _ => Err(err_at(tok, format!("unknown channel {:?}", tok.text))),
@@ -718,6 +720,15 @@ mod tests {
             if let Err(e) = r {
                 assert!(matches!(e, Error::Text { .. }), "cut at {i}: {e:?}");
             }
+        }
+    }
+
+    #[test]
+    fn multibyte_channel_names_are_errors() {
+        let bad = SMALL.replace("CHANNELS 3 Xrotation", "CHANNELS 3 \u{3451}zrotation");
+        match read_bvh(&bad, LengthUnit::Millimetre) {
+            Err(Error::Text { line: 9, message, .. }) => assert!(message.contains("unknown channel"), "{message}"),
+            other => panic!("{other:?}"),
         }
     }
 

@@ -486,3 +486,19 @@ fn defaults_fit_the_shared_captures() {
         }
     }
 }
+
+/// Fuzzer-found BVH inputs under `tests/data/bugfixes/` (`bvh_multibyte_channel.bvh`: a
+/// channel name starting with a multi-byte character made the channel parser slice inside
+/// it and panic): each must now be a located text error.
+#[test]
+fn fuzzer_found_bvh_inputs_are_errors() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/bugfixes");
+    let files = common::files_with_extension(&dir, "bvh");
+    assert!(!files.is_empty(), "no BVH regression inputs in {}", dir.display());
+    for path in files {
+        match bvh::read_bvh_path(&path, LengthUnit::Centimetre) {
+            Err(Error::InFile { error, .. }) if matches!(*error, Error::Text { .. }) => {}
+            other => panic!("{}: {other:?}", path.display()),
+        }
+    }
+}
