@@ -153,7 +153,7 @@ fn kind_of(file_type: std::fs::FileType) -> &'static str {
             return "a socket";
         }
     }
-    if file_type.is_dir() { "a directory" } else { "not a regular file" }
+    if file_type.is_dir() { "a directory" } else { "an unknown kind of file" }
 }
 
 /// Reads a whole file into memory, refusing non-regular files before opening them and files
