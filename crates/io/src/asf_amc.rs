@@ -38,7 +38,12 @@
 //!   not fully specified AMC intends. Errors name the 1-based line (and column for values).
 //! - **Not supported:** translation and length dofs on bones (`tx`, `ty`, `tz`, `l`), which
 //!   give an [`Error::Unsupported`] when an AMC is read against such a skeleton.
+//! - **Limits.** The `*_with` readers check the bone count and the `:hierarchy` depth against
+//!   [`Limits`], and an AMC's frames × joints against [`Limits::max_samples`] and against the
+//!   AMC text's size (bones left out of a frame are samples no byte backs; see
+//!   [`crate::limits`]), frame by frame before the frame is stored.
 
+use crate::limits::{self, Limits};
 use crate::{Error, Result};
 use locap_core::rotation::axis_rotation;
 use locap_core::{EulerOrder, Joint, Motion, Quat, Skeleton, Vec3};
@@ -283,6 +288,11 @@ fn push_limits(line: usize, raw: &str, start: usize, limits: &mut Vec<f64>) -> R
 
 /// Reads an ASF file's text.
 pub fn read_asf(text: &str) -> Result<AsfSkeleton> {
+    read_asf_with(text, &Limits::default())
+}
+
+/// [`read_asf`] with explicit [`Limits`] on the bone count and hierarchy depth.
+pub fn read_asf_with(text: &str, limits: &Limits) -> Result<AsfSkeleton> {
     let mut section = Section::None;
     let mut version = None;
     let mut name = None;
@@ -391,6 +401,7 @@ pub fn read_asf(text: &str) -> Result<AsfSkeleton> {
                 let lower = key.to_ascii_lowercase();
                 let Some(bone) = current.as_mut() else {
                     if lower == "begin" {
+                        limits.check_hierarchy(ASF, line, 0, drafts.len() + 1)?;
                         current = Some(BoneDraft { line, ..BoneDraft::default() });
                         continue;
                     }
@@ -530,14 +541,17 @@ pub fn read_asf(text: &str) -> Result<AsfSkeleton> {
     }
     let mut bones: Vec<AsfBone> = Vec::with_capacity(by_name.len());
     let mut index_of: HashMap<String, usize> = HashMap::new();
-    // Depth-first, explicit stack: (parent index, child name).
+    // Depth-first, explicit stack: (parent index, child name, depth; the root is depth 0).
     let root_children =
         children_of.iter().find(|(k, _)| k.eq_ignore_ascii_case("root")).map(|(_, v)| v.clone()).unwrap_or_default();
-    let mut stack: Vec<(Option<usize>, String)> = root_children.into_iter().rev().map(|c| (None, c)).collect();
-    while let Some((parent, child)) = stack.pop() {
+    let mut stack: Vec<(Option<usize>, String, usize)> =
+        root_children.into_iter().rev().map(|c| (None, c, 1)).collect();
+    while let Some((parent, child, depth)) = stack.pop() {
         let Some(d) = by_name.get(&child) else {
             continue;
         };
+        let line = parent_of.get(&child).map_or(d.line, |(_, line)| *line);
+        limits.check_hierarchy(ASF, line, depth, bones.len() + 1)?;
         if index_of.contains_key(&child) {
             continue; // impossible: a bone has one parent; kept as a cycle guard
         }
@@ -568,7 +582,7 @@ pub fn read_asf(text: &str) -> Result<AsfSkeleton> {
         let me = bones.len() - 1;
         index_of.insert(child.clone(), me);
         if let Some(kids) = children_of.get(&child) {
-            stack.extend(kids.iter().rev().map(|k| (Some(me), k.clone())));
+            stack.extend(kids.iter().rev().map(|k| (Some(me), k.clone(), depth + 1)));
         }
     }
     for bone_name in &file_order {
@@ -601,8 +615,14 @@ fn pairs_into(line: usize, flat: &[f64], limits: &mut Vec<(f64, f64)>) -> Result
 
 /// Reads an ASF file (see [`read_asf`]); errors name the file.
 pub fn read_asf_path(path: &Path) -> Result<AsfSkeleton> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::from(e).in_file(path))?;
-    read_asf(&text).map_err(|e| e.in_file(path))
+    read_asf_path_with(path, &Limits::default())
+}
+
+/// [`read_asf_path`] with explicit [`Limits`]. A path that is not a regular file (a named
+/// pipe, a device, a directory) is refused before it is opened.
+pub fn read_asf_path_with(path: &Path, limits: &Limits) -> Result<AsfSkeleton> {
+    let text = limits::read_utf8(path, limits)?;
+    read_asf_with(&text, limits).map_err(|e| e.in_file(path))
 }
 
 impl AsfSkeleton {
@@ -717,6 +737,21 @@ pub fn read_amc(text: &str, asf: &AsfSkeleton, frame_rate_hz: f64) -> Result<Mot
 
 /// [`read_amc`] with an explicit length scale, to match [`AsfSkeleton::to_skeleton`].
 pub fn read_amc_scaled(text: &str, asf: &AsfSkeleton, frame_rate_hz: f64, mm_per_length_unit: f64) -> Result<Motion> {
+    read_amc_scaled_with(text, asf, frame_rate_hz, mm_per_length_unit, &Limits::default())
+}
+
+/// [`read_amc_scaled`] with explicit [`Limits`] on frames and samples (frames × joints).
+pub fn read_amc_scaled_with(
+    text: &str,
+    asf: &AsfSkeleton,
+    frame_rate_hz: f64,
+    mm_per_length_unit: f64,
+    limits: &Limits,
+) -> Result<Motion> {
+    // Checked first: a rate the caller got wrong should not cost a pass over the file.
+    if !(frame_rate_hz.is_finite() && frame_rate_hz > 0.0) {
+        return Err(locap_core::SkeletonError::BadFrameRate(frame_rate_hz).into());
+    }
     let skeleton = asf.to_skeleton(mm_per_length_unit)?;
     for bone in &asf.bones {
         if bone.dof.iter().any(|d| d.rotation_axis().is_none()) {
@@ -750,6 +785,7 @@ pub fn read_amc_scaled(text: &str, asf: &AsfSkeleton, frame_rate_hz: f64, mm_per
     let mut values: Vec<Vec<f64>> = vec![Vec::new(); bone_count + 1];
     let mut seen = vec![false; bone_count + 1];
     let mut frame_number: Option<i64> = None;
+    let mut frames_started = 0usize;
     let mut rotations: Vec<Quat> = Vec::new();
     let mut root_positions: Vec<Vec3> = Vec::new();
 
@@ -802,6 +838,9 @@ pub fn read_amc_scaled(text: &str, asf: &AsfSkeleton, frame_rate_hz: f64, mm_per
                 }
                 finish(&mut values, &mut seen, angle_unit);
             }
+            // The frame starting here will be stored: count it before it is.
+            frames_started += 1;
+            limits.check_text_samples(AMC, frames_started, joints, "joints", text.len())?;
             frame_number = Some(n);
             continue;
         }
@@ -839,8 +878,14 @@ pub fn read_amc_scaled(text: &str, asf: &AsfSkeleton, frame_rate_hz: f64, mm_per
 
 /// Reads an AMC file (see [`read_amc`]); errors name the file.
 pub fn read_amc_path(path: &Path, asf: &AsfSkeleton, frame_rate_hz: f64) -> Result<Motion> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::from(e).in_file(path))?;
-    read_amc(&text, asf, frame_rate_hz).map_err(|e| e.in_file(path))
+    read_amc_path_with(path, asf, frame_rate_hz, &Limits::default())
+}
+
+/// [`read_amc_path`] with explicit [`Limits`]. A path that is not a regular file (a named
+/// pipe, a device, a directory) is refused before it is opened.
+pub fn read_amc_path_with(path: &Path, asf: &AsfSkeleton, frame_rate_hz: f64, limits: &Limits) -> Result<Motion> {
+    let text = limits::read_utf8(path, limits)?;
+    read_amc_scaled_with(&text, asf, frame_rate_hz, asf.mm_per_unit(), limits).map_err(|e| e.in_file(path))
 }
 
 #[cfg(test)]

@@ -29,8 +29,18 @@
 //! - **Writing** uses six channels for the root and three for every other joint, numbers in
 //!   Rust's shortest round-trip notation (so reading a written file gives back the same
 //!   `f64`s), and the frame time likewise, so the frame rate survives to ~1e-15 relative.
+//!   Indentation (one tab per level) stops growing at [`MAX_INDENT`] levels, so the output
+//!   stays linear in the joint count however deep the tree (readers ignore whitespace; a
+//!   100,000-deep chain once wrote 7.6 GB).
+//!
+//! # Limits
+//! [`read_bvh_with`] checks the hierarchy's depth and joint count against [`Limits`] while it
+//! parses, and frames × joints (including end sites and joints without channels, which no
+//! motion value backs) against [`Limits::max_samples`] and the text's size before reserving
+//! the motion (see [`crate::limits`]).
 
 use crate::atomic::write_atomically;
+use crate::limits::{self, Limits};
 use crate::{Error, Result};
 use locap_core::{EulerOrder, Joint, LengthUnit, Motion, Quat, Skeleton, Vec3};
 use std::collections::HashSet;
@@ -38,6 +48,9 @@ use std::io::Write;
 use std::path::Path;
 
 const FORMAT: &str = "BVH";
+
+/// Deepest indentation the writer uses, in tabs.
+pub const MAX_INDENT: usize = 32;
 
 /// One whitespace-separated word of the hierarchy with where it was found.
 #[derive(Debug, Clone, Copy)]
@@ -94,14 +107,16 @@ enum Channel {
 
 fn parse_channel(tok: &Token<'_>) -> Result<Channel> {
     let lower = tok.text.to_ascii_lowercase();
-    let (axis, kind) = lower.split_at(lower.len().min(1));
-    let axis = match axis {
-        "x" => 0,
-        "y" => 1,
-        "z" => 2,
+    // Split after the first *character*: a byte split panicked inside a multi-byte first
+    // character (fuzzer-found, `㑑zrotation`).
+    let mut chars = lower.chars();
+    let axis = match chars.next() {
+        Some('x') => 0,
+        Some('y') => 1,
+        Some('z') => 2,
         _ => return Err(err_at(tok, format!("unknown channel {:?}", tok.text))),
     };
-    match kind {
+    match chars.as_str() {
         "position" => Ok(Channel::Position(axis)),
         "rotation" => Ok(Channel::Rotation(axis)),
         _ => Err(err_at(tok, format!("unknown channel {:?}", tok.text))),
@@ -157,7 +172,7 @@ impl<'a> Cursor<'a> {
 }
 
 /// Parses the hierarchy tokens into declared joints (parents first, in channel order).
-fn parse_hierarchy(cursor: &mut Cursor<'_>) -> Result<Vec<Declared>> {
+fn parse_hierarchy(cursor: &mut Cursor<'_>, limits: &Limits) -> Result<Vec<Declared>> {
     cursor.expect("HIERARCHY")?;
     let root_tok = cursor.expect("ROOT")?;
     let name = cursor.next("the root's name")?;
@@ -234,6 +249,8 @@ fn parse_hierarchy(cursor: &mut Cursor<'_>) -> Result<Vec<Declared>> {
                     Some(cursor.next("a joint name")?.text.to_string())
                 };
                 cursor.expect("{")?;
+                // Depth of the new joint is the number of blocks open around it.
+                limits.check_hierarchy(FORMAT, tok.line, open.len(), joints.len() + 1)?;
                 joints.push(Declared {
                     name,
                     parent: Some(current),
@@ -369,6 +386,11 @@ fn header_value<'a>(line_text: &'a str, line: usize, key: &str) -> Result<&'a st
 
 /// Reads a BVH file's text. Offsets and positions are in `unit` (BVH does not say).
 pub fn read_bvh(text: &str, unit: LengthUnit) -> Result<Motion> {
+    read_bvh_with(text, unit, &Limits::default())
+}
+
+/// [`read_bvh`] with explicit [`Limits`] on depth, joints, frames and samples.
+pub fn read_bvh_with(text: &str, unit: LengthUnit, limits: &Limits) -> Result<Motion> {
     let mm = unit.mm_per_unit();
     let mut lines = numbered_lines(text);
     let mut hierarchy_tokens = Vec::new();
@@ -387,7 +409,7 @@ pub fn read_bvh(text: &str, unit: LengthUnit) -> Result<Motion> {
         hierarchy_tokens.extend(toks);
     }
     let mut cursor = Cursor { tokens: hierarchy_tokens, at: 0, end_line: last_line };
-    let declared = parse_hierarchy(&mut cursor)?;
+    let declared = parse_hierarchy(&mut cursor, limits)?;
     let motion_line =
         motion_line.ok_or_else(|| Error::text(FORMAT, last_line, "file ends before the MOTION section"))?;
     let (skeleton, decoders) = build_skeleton(&declared, mm)?;
@@ -428,10 +450,11 @@ pub fn read_bvh(text: &str, unit: LengthUnit) -> Result<Motion> {
     }
 
     let joints = skeleton.len();
-    // The declared count only guides the allocation up to a sane bound: a corrupt header
-    // must not make us reserve gigabytes.
-    let mut rotations: Vec<Quat> = Vec::with_capacity(frames.min(100_000) * joints);
-    let mut root_positions: Vec<Vec3> = Vec::with_capacity(frames.min(100_000));
+    limits.check_samples(FORMAT, frames, joints, "joints")?;
+    // The declared count only guides the allocation up to what the text could back: a
+    // corrupt header must not make us reserve gigabytes before the lines are seen.
+    let mut rotations: Vec<Quat> = Vec::with_capacity((frames * joints).min(text.len()));
+    let mut root_positions: Vec<Vec3> = Vec::with_capacity(frames.min(text.len() / 2));
     let root_offset = skeleton.joints().first().map(|j| j.offset_mm).unwrap_or_else(Vec3::zeros);
     let mut values = Vec::with_capacity(channel_count);
     let mut end_line = time_line;
@@ -447,6 +470,9 @@ pub fn read_bvh(text: &str, unit: LengthUnit) -> Result<Motion> {
                 format!("more motion lines than the {frames} frames that \"Frames:\" declares"),
             ));
         }
+        // Joints without channels (end sites) take no bytes of a motion line, so the motion
+        // is bounded by the text as it grows (see the module doc).
+        limits.check_text_samples(FORMAT, root_positions.len() + 1, joints, "joints", text.len())?;
         values.clear();
         let mut count = 0usize;
         for tok in tokens_of(line_text, number) {
@@ -499,8 +525,14 @@ fn number_value(tok: &Token<'_>) -> Result<f64> {
 
 /// Reads a BVH file (see [`read_bvh`]); errors name the file.
 pub fn read_bvh_path(path: &Path, unit: LengthUnit) -> Result<Motion> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::from(e).in_file(path))?;
-    read_bvh(&text, unit).map_err(|e| e.in_file(path))
+    read_bvh_path_with(path, unit, &Limits::default())
+}
+
+/// [`read_bvh_path`] with explicit [`Limits`]. A path that is not a regular file (a named
+/// pipe, a device, a directory) is refused before it is opened.
+pub fn read_bvh_path_with(path: &Path, unit: LengthUnit, limits: &Limits) -> Result<Motion> {
+    let text = limits::read_utf8(path, limits)?;
+    read_bvh_with(&text, unit, limits).map_err(|e| e.in_file(path))
 }
 
 /// Checks a value can be written and read back.
@@ -545,7 +577,7 @@ pub fn write_bvh(motion: &Motion, unit: LengthUnit, w: &mut dyn Write) -> Result
     while let Some(top) = stack.last_mut() {
         let (joint, depth, next_child) = *top;
         let Some(j) = joints.get(joint) else { break };
-        let indent = "\t".repeat(depth);
+        let indent = "\t".repeat(depth.min(MAX_INDENT));
         if !opened.get(joint).copied().unwrap_or(true) {
             if let Some(o) = opened.get_mut(joint) {
                 *o = true;
@@ -688,6 +720,15 @@ mod tests {
             if let Err(e) = r {
                 assert!(matches!(e, Error::Text { .. }), "cut at {i}: {e:?}");
             }
+        }
+    }
+
+    #[test]
+    fn multibyte_channel_names_are_errors() {
+        let bad = SMALL.replace("CHANNELS 3 Xrotation", "CHANNELS 3 \u{3451}zrotation");
+        match read_bvh(&bad, LengthUnit::Millimetre) {
+            Err(Error::Text { line: 9, message, .. }) => assert!(message.contains("unknown channel"), "{message}"),
+            other => panic!("{other:?}"),
         }
     }
 

@@ -25,6 +25,7 @@
 //!   least two rows are needed, since one frame does not determine a frame rate.
 
 use crate::atomic::write_atomically;
+use crate::limits::{self, Limits};
 use crate::trc::{combine_xyz, frame_time_s, parse_coordinate, snippet};
 use crate::{Error, Result};
 use locap_core::{MarkerName, Take, Vec3};
@@ -73,6 +74,12 @@ pub fn write_csv_path(take: &Take, path: &Path) -> Result<()> {
 /// The frame rate is recovered from the `time_s` column and the first frame number from the
 /// `frame` column. Errors carry the line and column.
 pub fn read_csv(text: &str) -> Result<Take> {
+    read_csv_with(text, &Limits::default())
+}
+
+/// [`read_csv`] with explicit [`Limits`] on frames and samples, checked row by row before the
+/// row's samples are stored.
+pub fn read_csv_with(text: &str, limits: &Limits) -> Result<Take> {
     let text = text.strip_prefix('\u{feff}').unwrap_or(text);
     let mut records = parse_records(text)?.into_iter().filter(|r| !r.is_blank());
     let header = records
@@ -111,9 +118,7 @@ pub fn read_csv(text: &str) -> Result<Take> {
             }
         };
         rows.push((frame, time, record.line));
-        if samples.len().saturating_add(markers.len()) > crate::trc::MAX_SAMPLES {
-            return Err(Error::Limit(format!("CSV take exceeds {} samples", crate::trc::MAX_SAMPLES)));
-        }
+        limits.check_samples(FORMAT, rows.len(), markers.len(), "markers")?;
         for m in 0..markers.len() {
             let mut xyz = [None; 3];
             for (axis, slot) in xyz.iter_mut().enumerate() {
@@ -152,8 +157,14 @@ pub fn read_csv(text: &str) -> Result<Take> {
 
 /// Reads a CSV file from disk; errors name the file.
 pub fn read_csv_path(path: &Path) -> Result<Take> {
-    let bytes = std::fs::read(path).map_err(|e| Error::from(e).in_file(path))?;
-    read_csv(&crate::trc::decode_text(bytes)).map_err(|e| e.in_file(path))
+    read_csv_path_with(path, &Limits::default())
+}
+
+/// [`read_csv_path`] with explicit [`Limits`]. A path that is not a regular file (a named
+/// pipe, a device, a directory) is refused before it is opened.
+pub fn read_csv_path_with(path: &Path, limits: &Limits) -> Result<Take> {
+    let bytes = limits::read_file(path, limits)?;
+    read_csv_with(&crate::trc::decode_text(bytes), limits).map_err(|e| e.in_file(path))
 }
 
 /// The frame rate implied by the rows' times.

@@ -42,9 +42,13 @@ pub enum Error {
     /// The data cannot be represented in the target format.
     #[error("cannot write: {0}")]
     Unwritable(String),
-    /// The file's size or counts exceed a safety limit.
+    /// The file's size or counts exceed a safety limit (see [`crate::Limits`]).
     #[error("limit exceeded: {0}")]
     Limit(String),
+    /// The path is not a regular file (a named pipe, device, socket or directory), refused
+    /// before opening it because opening a named pipe blocks.
+    #[error("not a regular file: this is {0}")]
+    NotAFile(&'static str),
     /// The data read does not form a valid take.
     #[error(transparent)]
     Take(#[from] locap_core::TakeError),

@@ -17,6 +17,13 @@
 //! [`Error`] says where a file is broken: byte offset and section for binary files, line and
 //! column for text files, and (through [`Error::in_file`]) which file.
 //!
+//! # Limits and warnings
+//! Counts read from a file (frames, markers, joints, nesting depth) are checked against
+//! [`Limits`] before anything is allocated; every `*_with` reader takes them, the others use
+//! the defaults. Path readers refuse named pipes, devices and directories before opening
+//! them. Things a reader resolved but the user should hear about are returned, not printed:
+//! [`c3d::C3dFile::warnings`], [`trc::TrcFile::notes`].
+//!
 //! No existing crate was fit to build on (the `c3dio` writer produces files that ezc3d and
 //! py-c3d reject; `bvh_anim` is unmaintained alpha), so the formats are implemented here.
 
@@ -26,6 +33,8 @@ pub mod bvh;
 pub mod c3d;
 pub mod csv;
 mod error;
+pub mod limits;
 pub mod trc;
 
 pub use error::{Error, Result};
+pub use limits::Limits;

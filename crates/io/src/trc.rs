@@ -49,18 +49,13 @@
 //! nothing measurable. `Time` is `(Frame# - 1) / DataRate`, the Cortex / OpenSim convention.
 
 use crate::atomic::write_atomically;
+use crate::limits::{self, Limits};
 use crate::{Error, Result};
 use locap_core::{LengthUnit, MarkerName, Take, Vec3};
 use std::io::Write;
 use std::path::Path;
 
 const FORMAT: &str = "TRC";
-
-/// The most samples (frames × markers) a file may expand to, about 2 GB of [`Take`].
-///
-/// A short file can legitimately declare a huge take (one very long row plus many short ones
-/// whose missing markers are left out), so memory is bounded here rather than by file size.
-pub const MAX_SAMPLES: usize = 1 << 26;
 
 /// A TRC file as read: the take plus what the header said, for writing it back the same way.
 #[derive(Debug, Clone, PartialEq)]
@@ -91,8 +86,14 @@ pub fn read_trc_path(path: &Path) -> Result<Take> {
 
 /// Reads a TRC file from disk, keeping its unit and notes; errors name the file.
 pub fn read_trc_file_path(path: &Path) -> Result<TrcFile> {
-    let bytes = std::fs::read(path).map_err(|e| Error::from(e).in_file(path))?;
-    read_trc_file(&decode_text(bytes)).map_err(|e| e.in_file(path))
+    read_trc_file_path_with(path, &Limits::default())
+}
+
+/// [`read_trc_file_path`] with explicit [`Limits`]. A path that is not a regular file (a
+/// named pipe, a device, a directory) is refused before it is opened.
+pub fn read_trc_file_path_with(path: &Path, limits: &Limits) -> Result<TrcFile> {
+    let bytes = limits::read_file(path, limits)?;
+    read_trc_file_with(&decode_text(bytes), limits).map_err(|e| e.in_file(path))
 }
 
 /// Decodes a text file: UTF-8 if it is, Latin-1 otherwise (every byte is a Latin-1 character,
@@ -106,6 +107,13 @@ pub(crate) fn decode_text(bytes: Vec<u8>) -> String {
 
 /// Reads a TRC file's text, keeping the header's unit and declared counts.
 pub fn read_trc_file(text: &str) -> Result<TrcFile> {
+    read_trc_file_with(text, &Limits::default())
+}
+
+/// [`read_trc_file`] with explicit [`Limits`]: frames × markers are checked before the take is
+/// allocated, and since rows may stop after their last visible marker, the take may hold at
+/// most one sample per byte of text (see [`crate::limits`]).
+pub fn read_trc_file_with(text: &str, limits: &Limits) -> Result<TrcFile> {
     let text = text.strip_prefix('\u{feff}').unwrap_or(text);
     // Lines keep their 1-based number for error messages; `split('\n')` plus stripping `\r`
     // handles LF and CRLF files alike.
@@ -263,12 +271,7 @@ pub fn read_trc_file(text: &str) -> Result<TrcFile> {
     }
     let named = slots.iter().filter(|s| s.is_some()).count();
 
-    if frames.saturating_mul(markers.len()) > MAX_SAMPLES {
-        return Err(Error::Limit(format!(
-            "TRC take of {frames} frames x {} markers exceeds {MAX_SAMPLES} samples",
-            markers.len()
-        )));
-    }
+    limits.check_text_samples(FORMAT, frames, markers.len(), "markers", text.len())?;
     let mut take = Take::empty(markers, frames, frame_rate_hz)?;
     for (f, row) in rows.iter().enumerate() {
         for (m, &t) in column_of.iter().enumerate() {

@@ -58,18 +58,19 @@ fn param_dims_overflow_is_an_error() {
 }
 
 /// No points, no analog samples, and `TRIAL:ACTUAL_END_FIELD` saying billions of frames: the
-/// reader looped over every empty frame (a fuzzer timeout). It must return at once.
+/// reader looped over every empty frame (a fuzzer timeout), and then reported them all, so
+/// every stage after it did. Empty frames are now bounded by the bytes after the data start
+/// (see `locap_io::limits`), which is what this checks instead of the time taken.
 #[test]
 fn empty_frames_do_not_hang() {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/bugfixes/c3d_empty_frames_hang.c3d");
-    let start = std::time::Instant::now();
-    let result = c3d::read(&std::fs::read(path).unwrap());
-    if let Ok(file) = &result {
+    let bytes = std::fs::read(path).unwrap();
+    if let Ok(file) = &c3d::read(&bytes) {
         assert!(file.points.is_empty() && file.analog.is_empty());
+        assert!(file.frames <= bytes.len(), "{} empty frames from {} bytes", file.frames, bytes.len());
         let mut out = Vec::new();
         c3d::write(file, &mut out).unwrap();
     }
-    assert!(start.elapsed().as_secs() < 5, "took {:?}: {result:?}", start.elapsed());
 }
 
 /// `ANALOG:USED` stored as a float of 6.6e8: `analog_info` sized its label vectors from it

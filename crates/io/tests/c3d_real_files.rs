@@ -126,7 +126,7 @@ fn broken_files_give_located_errors() {
             assert!(text.contains("byte"), "{text}");
         }
     }
-    let strict = c3d::ReadOptions { strict: true };
+    let strict = c3d::ReadOptions { strict: true, ..Default::default() };
     let err = c3d::read_with(&bytes[..bytes.len() - 1000], strict).unwrap_err().to_string();
     assert!(err.contains("data section") && err.contains("truncated"), "{err}");
     // Lenient by default: the complete frames are read, with a warning.

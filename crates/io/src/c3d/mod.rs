@@ -24,9 +24,14 @@
 //! understands.
 //!
 //! # Robustness
-//! Counts read from the file are checked against the file's size before anything is
-//! allocated, and every malformed structure gives [`Error::Binary`] with the byte offset and
-//! section; no input makes the reader panic (a fuzz target checks this).
+//! Counts read from the file are checked against the file's size and against
+//! [`crate::Limits`] (in [`ReadOptions`]) before anything is allocated, and every malformed
+//! structure gives [`Error::Binary`] with the byte offset and section; no input makes the
+//! reader panic (a fuzz target checks this). What the reader resolved by a choice (header
+//! and parameters disagreeing, a truncated data section, an empty or unknown `POINT:UNITS`
+//! read as millimetres, an invalid `POINT:RATE`) is reported in [`C3dFile::warnings`] for the
+//! caller to show; a file with no valid frame rate at all reads (its parameters and analog
+//! data are not lost) but [`C3dFile::to_take`] refuses it rather than invent one.
 
 mod params;
 mod processor;
@@ -269,13 +274,27 @@ impl C3dFile {
     }
 
     /// The marker take: positions in millimetres, missing samples explicit (see the module
-    /// doc for the rules), residuals and camera masks kept as [`SampleQuality`].
+    /// doc for the rules), residuals and camera masks kept as [`SampleQuality`]. Fails if the
+    /// file has no valid frame rate (NaN, zero or negative in both `POINT:RATE` and header).
     pub fn to_take(&self) -> Result<Take> {
         let names: Vec<MarkerName> = self.point_labels().iter().map(|l| MarkerName::parse(l)).collect();
         let mm = self.point_unit().mm_per_unit();
         let scale = self.point_scale();
         let rate = self.frame_rate_hz();
-        let rate = if rate.is_finite() && rate > 0.0 { rate } else { 1.0 };
+        // A take needs a time base; inventing one (this used to become 1 Hz) would make every
+        // velocity and gap length downstream wrong without a word. No shared vendor file
+        // lacks a valid rate.
+        if !(rate.is_finite() && rate > 0.0) {
+            return Err(Error::Binary {
+                format: "C3D",
+                section: "header".to_string(),
+                offset: 20,
+                message: format!(
+                    "no frame rate: POINT:RATE is absent or not positive and the header (words 11-12) says {} Hz",
+                    self.header.frame_rate_hz
+                ),
+            });
+        }
         let mut take = Take::empty(names, self.frames, rate)?;
         take.first_frame = self.first_frame();
         take.up_axis = self.up_axis();

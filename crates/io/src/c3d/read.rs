@@ -1,19 +1,29 @@
 //! The C3D reader: header, parameter section, data section.
+//!
+//! Counts from the header and parameters are checked against the file's size and against
+//! [`Limits`] before anything is allocated (see [`crate::limits`]). Frames of zero bytes (a
+//! file with no points and no analog channels) are bounded by the bytes after the data
+//! start, one frame per byte: `TRIAL:ACTUAL_END_FIELD` can claim 4 billion of them in a 1 KB
+//! file, and nothing in the file backs them.
 
 use super::params::{Group, ParamData, Parameter, Parameters, Record};
 use super::{AnalogSamples, C3dFile, ExtraSection, Header, HeaderEvent, Processor, Storage, trial_field};
+use crate::limits::{self, Limits};
 use crate::{Error, Result};
+use locap_core::LengthUnit;
 use std::path::Path;
 
 const BLOCK: usize = 512;
 
-/// How forgiving the reader is.
+/// How forgiving the reader is, and how much it may allocate.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct ReadOptions {
     /// Fail on a truncated data section instead of reading the complete frames it holds
     /// (with a warning in [`C3dFile::warnings`]). Off by default: a capture cut short by a
     /// crash still holds good frames, and the reference reader ezc3d reads them too.
     pub strict: bool,
+    /// Ceilings on file size, frames and samples (see [`Limits`]).
+    pub limits: Limits,
 }
 
 /// Reads a C3D file from disk with default options. Errors name the file.
@@ -21,9 +31,10 @@ pub fn read_path(path: &Path) -> Result<C3dFile> {
     read_path_with(path, ReadOptions::default())
 }
 
-/// Reads a C3D file from disk. Errors name the file.
+/// Reads a C3D file from disk. Errors name the file; a path that is not a regular file (a
+/// named pipe, a device, a directory) is refused before it is opened.
 pub fn read_path_with(path: &Path, options: ReadOptions) -> Result<C3dFile> {
-    let bytes = std::fs::read(path).map_err(|e| Error::from(e).in_file(path))?;
+    let bytes = limits::read_file(path, &options.limits)?;
     read_with(&bytes, options).map_err(|e| e.in_file(path))
 }
 
@@ -34,6 +45,13 @@ pub fn read(bytes: &[u8]) -> Result<C3dFile> {
 
 /// Reads a C3D file held in memory.
 pub fn read_with(bytes: &[u8], options: ReadOptions) -> Result<C3dFile> {
+    if bytes.len() as u64 > options.limits.max_file_bytes {
+        return Err(Error::Limit(format!(
+            "C3D file of {} bytes exceeds the limit of {} bytes",
+            bytes.len(),
+            options.limits.max_file_bytes
+        )));
+    }
     if bytes.len() < BLOCK {
         return Err(binary("header", 0, format!("file is {} bytes, a C3D header alone is 512", bytes.len())));
     }
@@ -76,6 +94,7 @@ pub fn read_with(bytes: &[u8], options: ReadOptions) -> Result<C3dFile> {
         _ => bytes.len(),
     };
     let parameters = read_parameters(bytes, param_offset, param_end, processor, &mut warnings)?;
+    rate_warnings(&header, &parameters, &mut warnings);
 
     let storage = if header.scale < 0.0 { Storage::Float } else { Storage::Int };
     let word = match storage {
@@ -103,15 +122,26 @@ pub fn read_with(bytes: &[u8], options: ReadOptions) -> Result<C3dFile> {
         let channels = parameters.get("ANALOG", "USED").and_then(|p| p.as_i64()).unwrap_or(0).max(1) as usize;
         header.analog_per_channel = (analog_per_frame / channels) as u16;
     }
+    if point_count > 0
+        && let Some(w) = units_warning(&parameters)
+    {
+        warnings.push(w);
+    }
     let frame_bytes = (point_count * 4 + analog_per_frame) * word;
-    let available = if frame_bytes == 0 {
-        usize::MAX
-    } else if data_offset > bytes.len() || data_block == 0 {
-        0
-    } else {
-        (bytes.len() - data_offset) / frame_bytes
-    };
+    let backing = if data_offset > bytes.len() || data_block == 0 { 0 } else { bytes.len() - data_offset };
+    // Empty frames: at most one per byte after the data start (see the module doc).
+    let available = backing.checked_div(frame_bytes).unwrap_or(backing);
     let frames = frame_count(&header, &parameters, available, &mut warnings);
+    if frame_bytes == 0 && frames > available {
+        let message = format!(
+            "{frames} frames declared, but with no point or analog data per frame nothing in the file backs them: \
+             the {backing} bytes after the data start allow at most {available}"
+        );
+        if options.strict {
+            return Err(Error::Limit(message));
+        }
+        warnings.push(format!("{message}; read {available}"));
+    }
     if frame_bytes > 0 && frames > 0 {
         if data_block == 0 {
             return Err(binary("header", 16, "data section block number is 0".to_string()));
@@ -129,6 +159,7 @@ pub fn read_with(bytes: &[u8], options: ReadOptions) -> Result<C3dFile> {
         }
     }
     let frames = frames.min(available);
+    options.limits.check_samples("C3D", frames, point_count + analog_per_frame, "point and analog values")?;
 
     let scale = super::C3dFile::point_scale_of(&parameters, header.scale);
     let mut points = Vec::with_capacity(frames * point_count);
@@ -291,6 +322,40 @@ fn frame_count(header: &Header, params: &Parameters, available: usize, warnings:
         }
     }
     from_header
+}
+
+/// Warns when `POINT:UNITS` does not name a length unit: coordinates are then read as
+/// millimetres, which is a guess the user should hear about (the labeling set's Vicon files
+/// leave it empty; several c3d.org samples have none).
+fn units_warning(params: &Parameters) -> Option<String> {
+    let assumed = "coordinates are read as millimetres";
+    let Some(p) = params.get("POINT", "UNITS") else {
+        return Some(format!("POINT:UNITS is absent; {assumed}"));
+    };
+    match p.strings().into_iter().next() {
+        Some(s) if LengthUnit::parse(&s).is_some() => None,
+        Some(s) if !s.trim().is_empty() => Some(format!("POINT:UNITS is {s:?}, not a known length unit; {assumed}")),
+        _ => Some(format!("POINT:UNITS is empty; {assumed}")),
+    }
+}
+
+/// Warns about frame rates that are not positive numbers. `POINT:RATE` wins over the header
+/// when valid (see [`C3dFile::frame_rate_hz`]); with neither valid the file still reads, so
+/// its parameters and analog data are not lost, but [`C3dFile::to_take`] refuses it.
+fn rate_warnings(header: &Header, params: &Parameters, warnings: &mut Vec<String>) {
+    let valid = |r: f64| r.is_finite() && r > 0.0;
+    let header_rate = header.frame_rate_hz as f64;
+    match params.get("POINT", "RATE").and_then(|p| p.as_f64()) {
+        Some(r) if valid(r) => {}
+        Some(r) if valid(header_rate) => {
+            warnings.push(format!("POINT:RATE is {r}, not a positive number; using the header's {header_rate} Hz"))
+        }
+        Some(r) => warnings.push(format!("no frame rate: POINT:RATE is {r} and the header says {header_rate} Hz")),
+        None if !valid(header_rate) => {
+            warnings.push(format!("no frame rate: no POINT:RATE and the header says {header_rate} Hz"))
+        }
+        None => {}
+    }
 }
 
 fn read_u16_word(b: &[u8], p: Processor, n: usize) -> u16 {
