@@ -228,9 +228,30 @@ pub fn output_paths(files: &[PathBuf], out_dir: &Path, extension: Option<&str>) 
 pub fn read_take(path: &Path) -> Result<locap_core::Take> {
     protect(&[path])?;
     if has_extension(path, &["trc"]) {
-        Ok(locap_io::trc::read_trc_path(path)?)
+        read_trc(path)
     } else {
-        Ok(locap_io::c3d::read_path(path)?.to_take().map_err(|e| e.in_file(path))?)
+        Ok(read_c3d(path)?.to_take().map_err(|e| e.in_file(path))?)
+    }
+}
+
+/// Reads a whole C3D file, printing what the reader noticed but could read past (an empty
+/// POINT:UNITS read as mm, an invalid POINT:RATE, ...) as `path: warning: ...`.
+pub fn read_c3d(path: &Path) -> Result<locap_io::c3d::C3dFile> {
+    let file = locap_io::c3d::read_path(path)?;
+    warn(path, &file.warnings);
+    Ok(file)
+}
+
+/// Reads a TRC file's take, printing the reader's notes as warnings.
+pub fn read_trc(path: &Path) -> Result<locap_core::Take> {
+    let file = locap_io::trc::read_trc_file_path(path)?;
+    warn(path, &file.notes);
+    Ok(file.take)
+}
+
+fn warn(path: &Path, warnings: &[String]) {
+    for warning in warnings {
+        eprintln!("locap: {}: warning: {warning}", path.display());
     }
 }
 

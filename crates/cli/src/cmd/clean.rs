@@ -188,7 +188,7 @@ impl Models {
 }
 
 fn clean_one(input: &Path, output: &Path, args: &Args, models: &Models) -> Result<Summary> {
-    let mut file = c3d::read_path(input)?;
+    let mut file = inputs::read_c3d(input)?;
     let mut raw = file.to_take().map_err(|e| e.in_file(input))?;
     let swapped = if args.outliers == Switch::On { swaps::detect(&raw, &SwapConfig::default()) } else { Vec::new() };
     swaps::unswap(&mut raw, &swapped);

@@ -100,8 +100,8 @@ enum Content {
 
 fn convert(input: &Path, output: &Path, args: &Args) -> Result<()> {
     let content = match extension(input).as_str() {
-        "c3d" => Content::C3d(Box::new(c3d::read_path(input)?)),
-        "trc" => Content::Markers(trc::read_trc_path(input)?),
+        "c3d" => Content::C3d(Box::new(inputs::read_c3d(input)?)),
+        "trc" => Content::Markers(inputs::read_trc(input)?),
         "csv" => Content::Markers(csv::read_csv_path(input)?),
         "bvh" => Content::Motion(bvh::read_bvh_path(input, args.bvh_unit)?),
         "amc" => {

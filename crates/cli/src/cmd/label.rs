@@ -94,7 +94,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
     let auxiliary = [Some(&args.template), args.truth.as_ref(), args.skeleton.as_ref(), args.layout.as_ref()];
     inputs::protect(&auxiliary.iter().flatten().map(|p| p.as_path()).collect::<Vec<_>>())?;
     let targets = inputs::targets(&args.inputs, &files, &args.output)?;
-    let template_take = c3d::read_path(&args.template)?.to_take().map_err(|e| e.in_file(&args.template))?;
+    let template_take = inputs::read_c3d(&args.template)?.to_take().map_err(|e| e.in_file(&args.template))?;
     let template = Template::from_take(&template_take, args.template_frame)
         .with_context(|| format!("{}", args.template.display()))?;
     let model = match (&args.skeleton, &args.layout) {
@@ -152,7 +152,7 @@ fn label_one(
     model: Option<&MarkerModel>,
     args: &Args,
 ) -> Result<String> {
-    let mut file = c3d::read_path(input)?;
+    let mut file = inputs::read_c3d(input)?;
     let raw = file.to_take().map_err(|e| e.in_file(input))?;
     let frames = PointFrames::from_take(&raw);
     let config = LabelConfig::with_method(args.method.into());

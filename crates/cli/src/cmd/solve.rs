@@ -105,8 +105,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
         let marker_target = marker_targets.as_ref().map(|t| t[i].as_path());
         // A C3D input is kept whole, so the cleaned markers keep its parameters (subjects,
         // trial, events, ...) and analog data.
-        let c3d_input =
-            if inputs::has_extension(input, &["trc"]) { None } else { Some(locap_io::c3d::read_path(input)?) };
+        let c3d_input = if inputs::has_extension(input, &["trc"]) { None } else { Some(inputs::read_c3d(input)?) };
         let take = match &c3d_input {
             Some(file) => file.to_take().map_err(|e| e.in_file(input))?,
             None => inputs::read_take(input)?,

@@ -81,7 +81,7 @@ fn unlabel_one(
     ghosts: GhostCount,
     drop: &Option<GapModel>,
 ) -> Result<String> {
-    let mut file = c3d::read_path(input)?;
+    let mut file = inputs::read_c3d(input)?;
     let take = file.to_take().map_err(|e| e.in_file(input))?;
     let markers = take.markers().iter().filter(|m| !m.is_unlabeled()).count();
     let config = UnlabelConfig {

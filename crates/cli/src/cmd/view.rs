@@ -9,7 +9,7 @@ use crate::inputs;
 use anyhow::{Context, Result};
 use clap::{Parser, ValueEnum};
 use locap_core::{LengthUnit, Take, UpAxis};
-use locap_io::{bvh, c3d, csv, trc};
+use locap_io::{bvh, csv};
 use locap_view::{SampleState, ViewInput};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -113,10 +113,10 @@ pub fn run(args: Args) -> Result<ExitCode> {
 pub(crate) fn read_take(path: &Path) -> Result<(Take, Vec<SampleState>)> {
     let ext = path.extension().and_then(|e| e.to_str()).unwrap_or_default().to_ascii_lowercase();
     let (take, filled, outliers) = match ext.as_str() {
-        "trc" => (trc::read_trc_path(path)?, Vec::new(), Vec::new()),
+        "trc" => (crate::inputs::read_trc(path)?, Vec::new(), Vec::new()),
         "csv" => (csv::read_csv_path(path)?, Vec::new(), Vec::new()),
         _ => {
-            let file = c3d::read_path(path)?;
+            let file = crate::inputs::read_c3d(path)?;
             let take = file.to_take().map_err(|e| e.in_file(path))?;
             let filled = file.parameters.continued_strings("LOCAP", "FILLED");
             let outliers = file.parameters.continued_strings("LOCAP", "OUTLIERS");
