@@ -175,7 +175,8 @@ fn gap_free_takes_come_out_unchanged() {
              changed by > 0.5 mm",
             raw.frame_rate_hz()
         );
-        // A few real spikes may be repaired (a window is 5 samples), noise never.
-        assert!(changed * 1000 <= samples, "{rel}: {changed} of {samples} samples changed");
+        // A few real spikes may be repaired (a window is 5 samples), noise never: at most 0.2%
+        // (KneeltoProne01: 0.09% now, 2.4% when 240 Hz jitter counted as spikes).
+        assert!(changed * 500 <= samples, "{rel}: {changed} of {samples} samples changed");
     }
 }
