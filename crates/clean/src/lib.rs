@@ -21,11 +21,14 @@
 //!   [`FillMethod::Rigid`] (the rigid-body fill of Vicon and QTM, from 3 neighbours).
 //!
 //! Every method returns a [`Filled`] take with the mask of the samples it computed, so a
-//! writer can mark them and a benchmark can score exactly them.
+//! writer can mark them and a benchmark can score exactly them. Gaps at the take's start or end
+//! have one border only: EDM fills them from neighbours as long as the data shows those
+//! neighbours ride with the marker, and leaves the rest missing (see [`edm`], "Edge gaps").
 //!
 //! # Outliers and swaps
 //! [`outliers`] finds acceleration spikes that reverse direction and markers frozen while
-//! their segment moves; [`outliers::remove`] turns them into gaps and [`refill_outliers`]
+//! their segment moves, with thresholds that follow the frame rate and the take's noise;
+//! [`outliers::remove`] turns them into gaps and [`refill_outliers`]
 //! refills them with a cubic spline after the main fill, as the paper does. [`swaps`] finds
 //! two markers that trade labels and exchanges them back.
 //!
@@ -153,10 +156,16 @@ fn fill_with_method(take: &Take, config: &FillConfig) -> Filled {
 /// Refills the windows of removed outliers with a cubic spline through the trajectory around
 /// them (LocalMoCap section 3.1: "fill the gap with spline interpolation"), after the main
 /// fill has completed the neighbourhood. Samples that the spline cannot reach stay as the
-/// main fill left them.
+/// main fill left them, and so does a window with no sample on one side (at the take's start or
+/// end, or next to an edge gap the main fill left open): a spline from one side only would hold
+/// the marker still while the body moves, where the main fill carried it with its neighbours.
 pub fn refill_outliers(filled: &mut Filled, found: &[outliers::Outlier]) {
     let m = filled.take.marker_count();
     for o in found {
+        let present = |f: usize| filled.take.is_valid(f, o.marker);
+        if !(0..o.frames.start).any(present) || !(o.frames.end..filled.take.frame_count()).any(present) {
+            continue;
+        }
         let saved: Vec<(usize, Option<locap_core::Vec3>, bool)> = o
             .frames
             .clone()

@@ -49,10 +49,12 @@ pub struct Args {
     /// Detect and repair outliers: swapped labels, acceleration spikes, stuck markers.
     #[arg(long, value_enum, default_value_t = Switch::On, help_heading = "Outliers")]
     outliers: Switch,
-    /// Acceleration prominence that makes a body marker sample an outlier, m/s^2.
+    /// Acceleration prominence that makes a body marker sample an outlier, m/s^2 at 120 Hz
+    /// (scaled by (rate/120)^2 above, and at least 8 times the marker's noise).
     #[arg(value_parser = crate::values::positive, long, default_value_t = OutlierConfig::default().body_threshold_m_s2, value_name = "M_S2", help_heading = "Outliers")]
     body_threshold: f64,
-    /// Acceleration prominence that makes a hand marker sample an outlier, m/s^2.
+    /// Acceleration prominence that makes a hand marker sample an outlier, m/s^2 at 120 Hz
+    /// (scaled like the body threshold).
     #[arg(value_parser = crate::values::positive, long, default_value_t = OutlierConfig::default().hand_threshold_m_s2, value_name = "M_S2", help_heading = "Outliers")]
     hand_threshold: f64,
 }
