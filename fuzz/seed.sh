@@ -5,7 +5,11 @@ set -eu
 data=${1:?usage: seed.sh DATA_DIR}
 here=$(cd "$(dirname "$0")" && pwd)
 mkdir -p "$here/corpus/c3d_read" "$here/corpus/c3d_roundtrip" "$here/corpus/bvh_read" "$here/corpus/trc_read" "$here/corpus/shard_read" \
-    "$here/corpus/csv_read" "$here/corpus/asf_amc_read"
+    "$here/corpus/csv_read" "$here/corpus/asf_amc_read" "$here/corpus/layout_read" "$here/corpus/gap_stats_read"
+# Layouts and gap statistics: the ones shipped with locap-synth.
+cp "$here"/../crates/synth/layouts/*.toml "$here/corpus/layout_read/"
+cp "$here"/../crates/synth/data/*.json "$here/corpus/gap_stats_read/"
+find "$data" -name '*gap*.json' -exec cp {} "$here/corpus/gap_stats_read/" \;
 # C3D files are cut to their first 64 KiB: header and parameter section whole, a few frames
 # of data (the reader reads the complete frames of a truncated file). Whole files of several
 # MiB would slow libFuzzer down far more than they add coverage.
