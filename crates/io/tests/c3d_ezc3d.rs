@@ -136,3 +136,45 @@ fn ezc3d_reads_what_locap_writes() {
     eprintln!("{report}{}", String::from_utf8_lossy(&output.stderr));
     assert!(output.status.success(), "ezc3d disagrees with locap's output ({}):\n{report}", output.status);
 }
+
+/// `locap convert a.c3d b.c3d` as ezc3d sees it: every parameter and the header events read
+/// the same from the output as from the original (`ezc3d_parameters.py`), except the data
+/// start blocks. Files ezc3d cannot read as they are, or reads wrongly, are left to the test
+/// above ([`beyond_reference`], [`rejected_as_read`]).
+#[test]
+fn ezc3d_reads_the_same_parameters_after_convert() {
+    let Some(data) = common::shared_data() else { return };
+    if !ezc3d_available() {
+        assert!(std::env::var_os("CI").is_none(), "CI must install ezc3d into .ci/pydeps (see .ci/run)");
+        eprintln!("skipping: ezc3d not importable from {}", pydeps().display());
+        return;
+    }
+    let out = tempfile::tempdir().unwrap();
+    let mut cases = Vec::new();
+    for (i, path) in common::files_with_extension(&data, "c3d").iter().enumerate() {
+        let Ok(file) = locap_io::c3d::read_path(path) else { continue };
+        // BKINtechnologies.c3d: ezc3d rejects it as read (see above).
+        let unreadable = path.ends_with("BKINtechnologies.c3d") || rejected_as_read(path);
+        if unreadable || beyond_reference(path) || reference_for(path).is_some() {
+            continue;
+        }
+        let written = out.path().join(format!("{i}.c3d"));
+        locap_io::c3d::write_path(&file, &written).unwrap();
+        cases.push(serde_json::json!({"original": path, "written": written}));
+    }
+    assert!(cases.len() > 100, "expected the shared C3D files, found {}", cases.len());
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/ezc3d_parameters.py");
+    let mut child = Command::new("python3")
+        .arg(script)
+        .env("PYTHONPATH", pydeps())
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    child.stdin.take().unwrap().write_all(serde_json::to_string(&cases).unwrap().as_bytes()).unwrap();
+    let output = child.wait_with_output().unwrap();
+    let report = String::from_utf8_lossy(&output.stdout);
+    eprintln!("{report}{}", String::from_utf8_lossy(&output.stderr));
+    assert!(output.status.success(), "ezc3d reads other parameters after convert ({}):\n{report}", output.status);
+}
