@@ -324,3 +324,37 @@ impl Parameters {
 /// The most data bytes locap puts in one parameter record: a record (name, type, dimensions,
 /// data, a description of up to 255 bytes) must stay under 32 KiB.
 pub const MAX_RECORD_DATA: usize = 32_000;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn continued_strings_keep_each_record_under_32_kib() {
+        let mut p = Parameters::default();
+        let long: Vec<String> = (0..1000).map(|i| format!("{i:0>255}")).collect();
+        p.set_continued_strings("LOCAP", "FILLED", &long);
+        let sizes: Vec<usize> = p
+            .records
+            .iter()
+            .filter_map(|r| if let Record::Parameter(q) = r { Some(q.data.byte_len()) } else { None })
+            .collect();
+        assert!(sizes.iter().all(|s| *s <= MAX_RECORD_DATA), "{sizes:?}");
+        assert_eq!(sizes.len(), 1000usize.div_ceil(MAX_RECORD_DATA / 255));
+        assert_eq!(p.continued_strings("LOCAP", "FILLED"), long);
+        // Shorter lists replace the continuation parameters; short strings pack 255 a record.
+        let short: Vec<String> = (0..300).map(|i| i.to_string()).collect();
+        p.set_continued_strings("LOCAP", "FILLED", &short);
+        assert_eq!(p.continued_strings("LOCAP", "FILLED"), short);
+        assert!(p.get("LOCAP", "FILLED2").is_some() && p.get("LOCAP", "FILLED3").is_none());
+    }
+
+    #[test]
+    fn new_groups_do_not_adopt_undeclared_parameters() {
+        // Parameters of group 1, which the file never declared.
+        let mut p = Parameters { records: vec![Record::Parameter(Parameter::text_array(1, "X", &["x".into()]))] };
+        p.set_strings("LOCAP", "METHOD", &["m".to_string()]);
+        assert_ne!(p.group_id("LOCAP"), Some(1));
+        assert_eq!(p.parameters_of(p.group_id("LOCAP").unwrap()).count(), 1);
+    }
+}
