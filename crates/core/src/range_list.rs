@@ -322,4 +322,21 @@ mod tests {
         assert!(bad("////////").contains("longer than 7"), "{}", bad("////////"));
         assert!(bad("BAAAAB").contains("template 1 of 1"), "{}", bad("BAAAAB"));
     }
+
+    proptest::proptest! {
+        #[test]
+        fn any_list_of_range_lines_round_trips(
+            lines in proptest::collection::vec(("[A-Za-z:* -]{0,12}", 0u32..5_000_000, 0u32..2000, "( [A-Z][a-z]{0,6})?"), 0..60)
+        ) {
+            let lines: Vec<String> =
+                lines.iter().map(|(label, first, len, kind)| format!("{label} {first}-{}{kind}", first + len)).collect();
+            let enc = encode(&lines).unwrap();
+            proptest::prop_assert_eq!(decode(&enc).unwrap(), lines);
+        }
+
+        #[test]
+        fn any_stream_decodes_or_fails_cleanly(stream in "[A-Za-z0-9+/!]{0,80}") {
+            let _ = decode(&[MAGIC.to_string(), stream]);
+        }
+    }
 }
