@@ -371,10 +371,7 @@ impl C3dFile {
         self.points = points;
         self.point_count = m;
         self.frames = frames;
-        self.header.first_frame = take.first_frame.min(u16::MAX as u32) as u16;
-        if let Some(p) = self.parameters.get_mut("TRIAL", "ACTUAL_START_FIELD") {
-            set_trial_field(p, take.first_frame);
-        }
+        self.set_first_frame(take.first_frame);
         Ok(())
     }
 
@@ -400,11 +397,22 @@ impl C3dFile {
         };
         let first = self.first_frame().saturating_add(range.start as u32);
         self.frames = range.end - range.start;
-        self.header.first_frame = first.min(u16::MAX as u32) as u16;
-        if let Some(p) = self.parameters.get_mut("TRIAL", "ACTUAL_START_FIELD") {
-            set_trial_field(p, first);
-        }
+        self.set_first_frame(first);
         Ok(())
+    }
+
+    /// Sets the first frame number: the header word, and `TRIAL:ACTUAL_START_FIELD` if the
+    /// file has it or the number needs its 32 bits.
+    fn set_first_frame(&mut self, first: u32) {
+        self.header.first_frame = first.min(u16::MAX as u32) as u16;
+        match self.parameters.get_mut("TRIAL", "ACTUAL_START_FIELD") {
+            Some(p) => set_trial_field(p, first),
+            None if first > u16::MAX as u32 => {
+                let words = vec![(first & 0xffff) as u16 as i16, (first >> 16) as u16 as i16];
+                self.parameters.set("TRIAL", "ACTUAL_START_FIELD", vec![2], ParamData::Int(words));
+            }
+            None => {}
+        }
     }
 
     /// A new file holding just `take` (float storage, millimetres, no analog data), for
@@ -629,6 +637,17 @@ mod tests {
         let back = read(&bytes).unwrap();
         assert_eq!((back.frames, back.first_frame()), (100, 65500));
         assert_eq!((back.header.first_frame, back.header.last_frame), (1, 100));
+    }
+
+    #[test]
+    fn first_frames_past_65535_survive_set_take() {
+        let mut take = long_take(10).to_take().unwrap();
+        take.first_frame = 100_000;
+        let file = C3dFile::from_take(&take).unwrap();
+        let mut bytes = Vec::new();
+        write(&file, &mut bytes).unwrap();
+        let back = read(&bytes).unwrap();
+        assert_eq!((back.frames, back.first_frame()), (10, 100_000));
     }
 
     #[test]
