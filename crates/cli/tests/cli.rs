@@ -130,7 +130,8 @@ fn clean_fills_real_gaps_and_changes_nothing_else() {
     let cleaned = locap_io::c3d::read_path(&output).unwrap();
     let (a, b) = (original.to_take().unwrap(), cleaned.to_take().unwrap());
     assert_eq!(b.missing_count(), 0);
-    let outliers = cleaned.parameters.continued_strings("LOCAP", "OUTLIERS");
+    // Stored compactly (locap_core::range_list); decoded to `LABEL first-last Kind` lines.
+    let outliers = locap_core::range_list::decode(&cleaned.parameters.continued_strings("LOCAP", "OUTLIERS")).unwrap();
     let mut unchanged = 0;
     for f in 0..a.frame_count() {
         for m in 0..a.marker_count() {

@@ -26,6 +26,7 @@
 
 pub mod gaps;
 pub mod marker;
+pub mod range_list;
 pub mod rotation;
 pub mod skeleton;
 pub mod take;

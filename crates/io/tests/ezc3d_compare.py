@@ -82,6 +82,23 @@ def check_readable(case):
     return [] if shape == want else [f"ezc3d reads locap's file as {shape}, locap wrote {want}"]
 
 
+def check_same_rejection(case):
+    """For originals ezc3d rejects because of a parameter locap carries as read: ezc3d must
+    reject locap's output with the same message."""
+
+    def error(path):
+        try:
+            ezc3d.c3d(path)
+        except Exception as e:  # ezc3d raises plain exceptions
+            return str(e)
+        return None
+
+    before, after = error(case["original"]), error(case["written"])
+    if before is None or before != after:
+        return [f"ezc3d on the original: {before!r}; on locap's output: {after!r}"]
+    return []
+
+
 def check_pyc3d(case):
     """For files ezc3d rejects both as read and as written by locap: py-c3d must read the same
     points and analog samples from both."""
@@ -117,7 +134,9 @@ def main():
         if case.get("verbose"):
             print(f"checking {case['original']}", flush=True)
         try:
-            if case.get("pyc3d_only"):
+            if case.get("rejected_as_read"):
+                problems = check_same_rejection(case)
+            elif case.get("pyc3d_only"):
                 problems = check_pyc3d(case)
             elif case.get("beyond_reference"):
                 problems = check_readable(case)

@@ -4,7 +4,9 @@
 //! `locap clean` records its changes in the C3D parameters `LOCAP:FILLED` (`LABEL first-last`
 //! per run of filled samples) and `LOCAP:OUTLIERS` (`LABEL first-last Kind` per removed
 //! window), with C3D frame numbers (the take's `first_frame` is the first). The viewer reads
-//! them back here, so any take cleaned by locap shows which samples are real.
+//! them back here, so any take cleaned by locap shows which samples are real. The lists are
+//! stored in the compact form of [`locap_core::range_list`]; files written by earlier versions
+//! hold the lines themselves, and both are read.
 
 use crate::ViewError;
 use locap_core::Take;
@@ -41,16 +43,19 @@ impl SampleState {
 }
 
 /// The state of every sample of `take` (frame-major, like the take), from the strings of
-/// `LOCAP:FILLED` and `LOCAP:OUTLIERS` (empty for a take locap did not clean).
+/// `LOCAP:FILLED` and `LOCAP:OUTLIERS` (empty for a take locap did not clean), in either
+/// storage form of [`locap_core::range_list`].
 ///
 /// A sample the take has no position for is [`SampleState::Missing`] whatever the lists say;
 /// otherwise an outlier window wins over a filled range (outlier windows are refilled, so
 /// `locap clean` lists them in both).
 ///
 /// # Errors
-/// A line that is not `LABEL first-last` (`LABEL first-last Kind` for outliers), a label the
-/// take does not have, or a range outside the take's frames.
+/// A corrupt compact list, a line that is not `LABEL first-last` (`LABEL first-last Kind` for
+/// outliers), a label the take does not have, or a range outside the take's frames.
 pub fn sample_states(take: &Take, filled: &[String], outliers: &[String]) -> Result<Vec<SampleState>, ViewError> {
+    let filled = decode(filled, "LOCAP:FILLED")?;
+    let outliers = decode(outliers, "LOCAP:OUTLIERS")?;
     let m = take.marker_count();
     let mut states: Vec<SampleState> =
         take.validity().iter().map(|&v| if v { SampleState::Visible } else { SampleState::Missing }).collect();
@@ -62,11 +67,11 @@ pub fn sample_states(take: &Take, filled: &[String], outliers: &[String]) -> Res
             }
         }
     };
-    for line in filled {
+    for line in &filled {
         let (marker, frames) = parse_range_line(take, line, "LOCAP:FILLED")?;
         mark(marker, frames, SampleState::Filled);
     }
-    for line in outliers {
+    for line in &outliers {
         // The kind (`Spike`, `Stuck`) follows the range.
         let head = line
             .trim_end()
@@ -77,6 +82,15 @@ pub fn sample_states(take: &Take, filled: &[String], outliers: &[String]) -> Res
         mark(marker, frames, SampleState::OutlierFixed);
     }
     Ok(states)
+}
+
+/// The lines of a stored list, compact or plain.
+fn decode(strings: &[String], parameter: &'static str) -> Result<Vec<String>, ViewError> {
+    locap_core::range_list::decode(strings).map_err(|e| ViewError::BadParameter {
+        parameter,
+        line: strings.first().cloned().unwrap_or_default(),
+        reason: e.to_string(),
+    })
 }
 
 fn bad_line(line: &str, parameter: &'static str) -> ViewError {
@@ -155,6 +169,22 @@ mod tests {
         assert!(err("A 14-12").contains("outside"));
         let e = sample_states(&t, &[], &["A 12-13".to_string()]).unwrap_err().to_string();
         assert!(e.contains("LOCAP:OUTLIERS"), "{e}");
+    }
+
+    #[test]
+    fn compact_lists_give_the_same_states_as_plain_lines() {
+        use locap_core::range_list::{MAGIC, encode};
+        let t = take();
+        let filled = vec!["A 12-14".to_string(), "Sub:B C 13-16".to_string()];
+        let outliers = vec!["Sub:B C 16-17 Spike".to_string()];
+        let (f, o) = (encode(&filled).unwrap(), encode(&outliers).unwrap());
+        assert_eq!(f[0], MAGIC);
+        assert_eq!(sample_states(&t, &f, &o).unwrap(), sample_states(&t, &filled, &outliers).unwrap());
+        // Decoded lines are checked like plain ones.
+        let e = sample_states(&t, &encode(&["A 5-13".to_string()]).unwrap(), &[]).unwrap_err().to_string();
+        assert!(e.contains("outside the take's frames 11-20"), "{e}");
+        let e = sample_states(&t, &[MAGIC.to_string(), "g".to_string()], &[]).unwrap_err().to_string();
+        assert!(e.contains("LOCAP:FILLED") && e.contains("corrupt"), "{e}");
     }
 
     #[test]

@@ -7,7 +7,8 @@
 //! outlier windows are refilled with a cubic spline through the now-complete trajectory, as
 //! the paper does. Filled samples get residual 0 (the C3D convention for "not measured") and
 //! are listed, frame ranges per marker, in the C3D parameters `LOCAP:FILLED`,
-//! `LOCAP:OUTLIERS` and `LOCAP:SWAPS`, so any C3D viewer shows what locap changed.
+//! `LOCAP:OUTLIERS` and `LOCAP:SWAPS` (compact text, `locap_core::range_list`), so locap's
+//! viewer shows what locap changed.
 
 use crate::inputs;
 use anyhow::{Context, Result, bail};
@@ -234,8 +235,8 @@ fn clean_one(input: &Path, output: &Path, args: &Args, models: &Models) -> Resul
             )
         })
         .collect();
-    file.parameters.set_continued_strings("LOCAP", "FILLED", &filled_ranges);
-    file.parameters.set_continued_strings("LOCAP", "OUTLIERS", &outlier_ranges);
+    set_ranges(&mut file, "FILLED", &filled_ranges)?;
+    set_ranges(&mut file, "OUTLIERS", &outlier_ranges)?;
     let swap_ranges: Vec<String> = swapped
         .iter()
         .map(|s| {
@@ -243,7 +244,7 @@ fn clean_one(input: &Path, output: &Path, args: &Args, models: &Models) -> Resul
             format!("{} {} {}-{}", labels[s.a], labels[s.b], first, raw.first_frame as usize + s.frames.end - 1)
         })
         .collect();
-    file.parameters.set_continued_strings("LOCAP", "SWAPS", &swap_ranges);
+    set_ranges(&mut file, "SWAPS", &swap_ranges)?;
     let method = if refiners.is_empty() {
         format!("{:?} K={}", fill.method, fill.neighbours)
     } else {
@@ -258,6 +259,15 @@ fn clean_one(input: &Path, output: &Path, args: &Args, models: &Models) -> Resul
     file.parameters.set_strings("LOCAP", "METHOD", &[method]);
     c3d::write_path(&file, output)?;
     Ok(summary)
+}
+
+/// Stores a range list as `LOCAP:<name>` in the compact form of `locap_core::range_list`:
+/// about three characters a range, so tens of thousands of ranges fit the parameter section
+/// (one string per line did not past ~6,000).
+fn set_ranges(file: &mut c3d::C3dFile, name: &str, lines: &[String]) -> Result<()> {
+    let strings = locap_core::range_list::encode(lines).with_context(|| format!("LOCAP:{name}"))?;
+    file.parameters.set_continued_strings("LOCAP", name, &strings);
+    Ok(())
 }
 
 /// `LABEL first-last` (C3D frame numbers) for every run of filled samples.

@@ -11,12 +11,41 @@
 //! and the raw analog samples. [`C3dFile::to_take`] derives a [`Take`] (millimetres, explicit
 //! missing samples); [`C3dFile::set_take`] puts edited points back. [`write`] changes only
 //! what locap changed: point data, point labels if relabeled, and the bookkeeping parameters
-//! that describe them (`POINT:USED`, `POINT:FRAMES`, `POINT:DATA_START`, `POINT:SCALE`,
-//! `TRIAL:ACTUAL_*_FIELD`). Every other parameter, the header events and the analog data are
-//! carried through. Two deliberate changes: the output is always Intel (processor type 84),
-//! which every reader supports, and the optional "3D label and range" section of old files
-//! (header word 148) is dropped because nothing references it.
+//! that describe them (`POINT:USED`, `POINT:FRAMES`, `POINT:DATA_START`, `POINT:SCALE` when
+//! there are points, `POINT:LONG_FRAMES` and `TRIAL:ACTUAL_*_FIELD`, see below). Every other
+//! parameter (parameters of groups the file never declares included, written without a
+//! group as they were read), the header events of all 18 slots, residual words as stored
+//! (BTK's -32768 as well as -1) and the analog data are carried through; `convert a.c3d b.c3d`
+//! on the 139 shared real files changes nothing else (`tests/c3d_round_trip.rs`). Deliberate
+//! changes: the output is always Intel (processor type 84), which every reader supports; the
+//! optional "3D label and range" section of old files (header words 148-149) is dropped
+//! because nothing references it; reserved header words of non-Intel files are blanked (their
+//! number format is unknown); and `ANALOG:GEN_SCALE`, `SCALE`, `OFFSET` are added when a file
+//! with analog channels lacks them (ezc3d crashes without them). A float `ANALOG:OFFSET`
+//! (c3d.org sample 13) is kept as float although ezc3d rejects it: the output is then exactly
+//! as readable as the input.
 //!
+//! # Long takes
+//! Only the data section's start must fit 16 bits (header word 9 and `POINT:DATA_START`); the
+//! data section may run to any length. Frame numbers past 65535 are written the way the
+//! readers that handle long takes expect (ezc3d 1.7.2 source, `Header.cpp`/`Data.cpp`; BTK;
+//! the C3D.org user guide on `POINT:LONG_FRAMES`): header frames 1..=65535, which ezc3d reads
+//! as "to the end of the file" (so that data section is not padded to a whole block),
+//! `POINT:FRAMES` = 65535 as int16 (ezc3d refuses a float one), `POINT:LONG_FRAMES` (float,
+//! C-Motion) and `TRIAL:ACTUAL_START_FIELD`/`ACTUAL_END_FIELD` (two 16-bit words each, Vicon)
+//! with the true numbers. The reader takes the frame count from the TRIAL fields, then
+//! `LONG_FRAMES`, then `POINT:FRAMES`, when they are consistent with the file's size.
+//!
+//! # Long parameter sections
+//! The section's block count is one byte. ezc3d and locap follow the records' offsets and
+//! ignore it; py-c3d reads only the blocks it counts. locap writes sections of any size up to
+//! the 16-bit data start (65,533 blocks, ~33.5 MB) and saturates the count at 255, so py-c3d
+//! still reads the first 255 blocks: the standard groups, written first; locap's own groups
+//! come last. `locap clean`'s range lists are compact (`locap_core::range_list`) so that
+//! tens of thousands of ranges stay within 255 blocks. One record holds at most 32 KiB (its
+//! offset to the next is an int16): [`Parameters::set_continued_strings`] splits long string
+//! lists into `NAME`, `NAME2`, ... accordingly.
+
 //! # Missing samples
 //! A sample is missing if its residual word is negative (the standard) **or** all three
 //! coordinates are exactly zero (CMU and several exporters write zeros) or a coordinate is
@@ -361,10 +390,7 @@ impl C3dFile {
         self.points = points;
         self.point_count = m;
         self.frames = frames;
-        self.header.first_frame = take.first_frame.min(u16::MAX as u32) as u16;
-        if let Some(p) = self.parameters.get_mut("TRIAL", "ACTUAL_START_FIELD") {
-            set_trial_field(p, take.first_frame);
-        }
+        self.set_first_frame(take.first_frame);
         Ok(())
     }
 
@@ -390,11 +416,22 @@ impl C3dFile {
         };
         let first = self.first_frame().saturating_add(range.start as u32);
         self.frames = range.end - range.start;
-        self.header.first_frame = first.min(u16::MAX as u32) as u16;
-        if let Some(p) = self.parameters.get_mut("TRIAL", "ACTUAL_START_FIELD") {
-            set_trial_field(p, first);
-        }
+        self.set_first_frame(first);
         Ok(())
+    }
+
+    /// Sets the first frame number: the header word, and `TRIAL:ACTUAL_START_FIELD` if the
+    /// file has it or the number needs its 32 bits.
+    fn set_first_frame(&mut self, first: u32) {
+        self.header.first_frame = first.min(u16::MAX as u32) as u16;
+        match self.parameters.get_mut("TRIAL", "ACTUAL_START_FIELD") {
+            Some(p) => set_trial_field(p, first),
+            None if first > u16::MAX as u32 => {
+                let words = vec![(first & 0xffff) as u16 as i16, (first >> 16) as u16 as i16];
+                self.parameters.set("TRIAL", "ACTUAL_START_FIELD", vec![2], ParamData::Int(words));
+            }
+            None => {}
+        }
     }
 
     /// A new file holding just `take` (float storage, millimetres, no analog data), for
@@ -561,6 +598,89 @@ mod tests {
         let back = reread(&file);
         assert_eq!(back.point_labels(), vec!["Sub:LFWT", "Sub:RFWT"]);
         assert_eq!(back.parameters.get("SUBJECTS", "NAMES").unwrap().strings(), vec!["Sub"]);
+    }
+
+    fn long_take(frames: usize) -> C3dFile {
+        let names = vec![MarkerName::parse("A")];
+        let samples: Vec<Option<Vec3>> = (0..frames).map(|f| Some(Vec3::new(f as f64, 1.0, 2.0))).collect();
+        C3dFile::from_take(&Take::from_samples(names, &samples, 120.0).unwrap()).unwrap()
+    }
+
+    #[test]
+    fn long_takes_are_numbered_for_every_reader() {
+        let frames = 70_000;
+        let mut bytes = Vec::new();
+        write(&long_take(frames), &mut bytes).unwrap();
+        let back = read(&bytes).unwrap();
+        assert_eq!((back.frames, back.first_frame()), (frames, 1));
+        assert_eq!(back.points[frames - 1][0], (frames - 1) as f32);
+        assert_eq!((back.header.first_frame, back.header.last_frame), (1, 65535));
+        let p = &back.parameters;
+        assert_eq!(p.get("POINT", "FRAMES").unwrap().data, ParamData::Int(vec![-1]));
+        assert_eq!(p.get("POINT", "LONG_FRAMES").unwrap().data, ParamData::Float(vec![frames as f32]));
+        assert_eq!(p.get("TRIAL", "ACTUAL_END_FIELD").unwrap().data, ParamData::Int(vec![4464, 1]));
+        // "To the end of the file" for ezc3d: no zero padding it would read as frames.
+        assert_eq!(bytes.len(), (back.header.data_block as usize - 1) * 512 + frames * 16);
+    }
+
+    #[test]
+    fn long_frames_alone_gives_the_frame_count() {
+        // A C-Motion style file: POINT:LONG_FRAMES but no TRIAL fields (renamed away here).
+        let frames = 70_000;
+        let mut bytes = Vec::new();
+        write(&long_take(frames), &mut bytes).unwrap();
+        let at = bytes.windows(5).position(|w| w == b"TRIAL").unwrap();
+        bytes[at..at + 5].copy_from_slice(b"XRIAL");
+        let back = read(&bytes).unwrap();
+        assert_eq!(back.frames, frames);
+    }
+
+    #[test]
+    fn short_takes_get_no_long_take_parameters() {
+        let mut bytes = Vec::new();
+        write(&long_take(100), &mut bytes).unwrap();
+        let back = read(&bytes).unwrap();
+        assert!(back.parameters.get("POINT", "LONG_FRAMES").is_none());
+        assert!(back.parameters.group_id("TRIAL").is_none());
+        assert_eq!((back.header.first_frame, back.header.last_frame), (1, 100));
+        assert_eq!(bytes.len() % 512, 0);
+    }
+
+    #[test]
+    fn frame_numbers_past_65535_use_the_trial_fields() {
+        // 100 frames numbered 65500..65599: the header words cannot hold the last one.
+        let mut file = long_take(100);
+        file.header.first_frame = 65500;
+        let mut bytes = Vec::new();
+        write(&file, &mut bytes).unwrap();
+        let back = read(&bytes).unwrap();
+        assert_eq!((back.frames, back.first_frame()), (100, 65500));
+        assert_eq!((back.header.first_frame, back.header.last_frame), (1, 100));
+    }
+
+    #[test]
+    fn first_frames_past_65535_survive_set_take() {
+        let mut take = long_take(10).to_take().unwrap();
+        take.first_frame = 100_000;
+        let file = C3dFile::from_take(&take).unwrap();
+        let mut bytes = Vec::new();
+        write(&file, &mut bytes).unwrap();
+        let back = read(&bytes).unwrap();
+        assert_eq!((back.frames, back.first_frame()), (10, 100_000));
+    }
+
+    #[test]
+    fn parameter_sections_past_255_blocks_are_written() {
+        let mut file = long_take(10);
+        let lines: Vec<String> = (0..20_000).map(|i| format!("A {i}-{i}")).collect();
+        file.parameters.set_continued_strings("LOCAP", "FILLED", &lines);
+        let mut bytes = Vec::new();
+        write(&file, &mut bytes).unwrap();
+        assert_eq!(bytes[512 + 2], 255, "the one-byte block count saturates");
+        let back = read(&bytes).unwrap();
+        assert!(back.header.data_block > 257);
+        assert_eq!(back.parameters.continued_strings("LOCAP", "FILLED"), lines);
+        assert_eq!(back.frames, 10);
     }
 
     #[test]

@@ -213,7 +213,15 @@ impl Parameters {
         let id = match self.group_id(group) {
             Some(id) => id,
             None => {
-                let id = (1..=127u8).find(|i| self.groups().all(|g| g.id != *i)).unwrap_or(127);
+                // Not the id of a group, nor of parameters whose group the file never declared
+                // (they would join the new group).
+                let used = |i: u8| {
+                    self.records.iter().any(|r| match r {
+                        Record::Group(g) => g.id == i,
+                        Record::Parameter(p) => p.group_id == i,
+                    })
+                };
+                let id = (1..=127u8).find(|i| !used(*i)).unwrap_or(127);
                 self.records.push(Record::Group(Group {
                     id,
                     name: group.to_ascii_uppercase(),
@@ -277,8 +285,9 @@ impl Parameters {
         out
     }
 
-    /// Writes `strings` as `name`, `name2`, ... with at most 255 strings each, removing any
-    /// stale continuation parameters.
+    /// Writes `strings` as `name`, `name2`, ... with at most 255 strings and
+    /// [`MAX_RECORD_DATA`] bytes each (a record's offset to the next is an int16), removing
+    /// any stale continuation parameters.
     pub fn set_continued_strings(&mut self, group: &str, name: &str, strings: &[String]) {
         for n in 2.. {
             if self.get(group, &format!("{name}{n}")).is_none() {
@@ -286,10 +295,66 @@ impl Parameters {
             }
             self.remove(group, &format!("{name}{n}"));
         }
-        let chunks: Vec<&[String]> = if strings.is_empty() { vec![&[][..]] } else { strings.chunks(255).collect() };
+        let mut chunks: Vec<&[String]> = Vec::new();
+        let mut start = 0;
+        while start < strings.len() {
+            let mut end = start;
+            let mut width = 1;
+            while end < strings.len() && end - start < 255 {
+                let w = width.max(strings[end].len().min(255));
+                if (end - start + 1) * w > MAX_RECORD_DATA {
+                    break;
+                }
+                width = w;
+                end += 1;
+            }
+            chunks.push(&strings[start..end]);
+            start = end;
+        }
+        if chunks.is_empty() {
+            chunks.push(&[]);
+        }
         for (i, chunk) in chunks.iter().enumerate() {
             let param_name = if i == 0 { name.to_string() } else { format!("{name}{}", i + 1) };
             self.set_strings(group, &param_name, chunk);
         }
+    }
+}
+
+/// The most data bytes locap puts in one parameter record: a record (name, type, dimensions,
+/// data, a description of up to 255 bytes) must stay under 32 KiB.
+pub const MAX_RECORD_DATA: usize = 32_000;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn continued_strings_keep_each_record_under_32_kib() {
+        let mut p = Parameters::default();
+        let long: Vec<String> = (0..1000).map(|i| format!("{i:0>255}")).collect();
+        p.set_continued_strings("LOCAP", "FILLED", &long);
+        let sizes: Vec<usize> = p
+            .records
+            .iter()
+            .filter_map(|r| if let Record::Parameter(q) = r { Some(q.data.byte_len()) } else { None })
+            .collect();
+        assert!(sizes.iter().all(|s| *s <= MAX_RECORD_DATA), "{sizes:?}");
+        assert_eq!(sizes.len(), 1000usize.div_ceil(MAX_RECORD_DATA / 255));
+        assert_eq!(p.continued_strings("LOCAP", "FILLED"), long);
+        // Shorter lists replace the continuation parameters; short strings pack 255 a record.
+        let short: Vec<String> = (0..300).map(|i| i.to_string()).collect();
+        p.set_continued_strings("LOCAP", "FILLED", &short);
+        assert_eq!(p.continued_strings("LOCAP", "FILLED"), short);
+        assert!(p.get("LOCAP", "FILLED2").is_some() && p.get("LOCAP", "FILLED3").is_none());
+    }
+
+    #[test]
+    fn new_groups_do_not_adopt_undeclared_parameters() {
+        // Parameters of group 1, which the file never declared.
+        let mut p = Parameters { records: vec![Record::Parameter(Parameter::text_array(1, "X", &["x".into()]))] };
+        p.set_strings("LOCAP", "METHOD", &["m".to_string()]);
+        assert_ne!(p.group_id("LOCAP"), Some(1));
+        assert_eq!(p.parameters_of(p.group_id("LOCAP").unwrap()).count(), 1);
     }
 }

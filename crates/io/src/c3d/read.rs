@@ -309,7 +309,13 @@ fn frame_count(header: &Header, params: &Parameters, available: usize, warnings:
         ParamData::Float(v) => v.first().filter(|x| x.is_finite() && **x >= 0.0).map(|x| *x as usize),
         _ => None,
     });
-    for candidate in [from_trial, from_point].into_iter().flatten() {
+    // C-Motion's POINT:LONG_FRAMES: the frame count as a float, for takes past 65535 frames.
+    let from_long = params
+        .get("POINT", "LONG_FRAMES")
+        .and_then(|p| p.as_f64())
+        .filter(|x| x.is_finite() && *x >= 1.0)
+        .map(|x| x.min(u32::MAX as f64) as usize);
+    for candidate in [from_trial, from_long, from_point].into_iter().flatten() {
         // Longer than the header says: the 16-bit header words overflowed. Shorter, when the
         // header's count does not fit in the file: the header is wrong (Optotrak writes a
         // bogus last frame) and the parameters agree with the data actually present.
@@ -434,7 +440,7 @@ fn read_parameters(
         if name.is_empty() || name.len() > 127 {
             // Blank names (and lossy UTF-8 growing past 127 bytes) cannot be written back and
             // cannot be looked up (fuzzer-found: the round trip failed to write). A skipped
-            // group's parameters get a `GROUPn` group below.
+            // group's parameters stay without a group, as in the file.
             warnings.push(format!("record at byte {at} has name {name:?}, not 1-127 bytes; skipped"));
         } else if id == 0 {
             warnings.push(format!("record {name:?} at byte {at} has group id 0; skipped"));
@@ -463,8 +469,8 @@ fn read_parameters(
         }
         at = offset_at + next as usize;
     }
-    // Parameters whose group is never declared are kept, but a file this broken is worth a
-    // warning (writers then emit a group record for them).
+    // Parameters whose group is never declared are kept as they are (and written back so):
+    // a file this broken is worth a warning.
     let groups: Vec<u8> =
         records.iter().filter_map(|r| if let Record::Group(g) = r { Some(g.id) } else { None }).collect();
     let mut orphans: Vec<u8> = records
@@ -475,7 +481,6 @@ fn read_parameters(
     orphans.dedup();
     for id in orphans {
         warnings.push(format!("parameters refer to group {id}, which is never declared"));
-        records.push(Record::Group(Group { id, name: format!("GROUP{id}"), locked: false, description: Vec::new() }));
     }
     Ok(Parameters { records })
 }
