@@ -62,11 +62,14 @@ pub struct Method<'a> {
 /// The PCA fill ([`locap_clean::baseline::pca`]) eigen-decomposes a `3P x 3P` covariance
 /// matrix for every marker with gaps, `P` its predictors (nearly every other marker), so its
 /// cost grows as `markers^4` whatever the frame count: profiled on 5-frame takes with every
-/// tenth marker hidden in one frame, 50 / 100 / 200 markers took 1.7 / 24 / 356 s (debug
-/// build), and 3,000 markers would take days (issue 14: `bench fill` "hangs" on 3,000 x 5).
-/// Above the ceiling the PCA variant refuses the take (a failure in the report, its hidden
-/// samples unfilled) and every other method still runs; they grow as `markers^2`. 256 is
-/// over three times the largest marker set in the shared data (76 points).
+/// tenth marker hidden in one frame, 100 / 200 / 400 markers took 0.5 / 8 / 232 s (release
+/// build; debug: 50 / 100 / 200 in 1.7 / 24 / 356 s), so 3,000 markers would take days
+/// (issue 14: `bench fill` "hangs" on 3,000 x 5). Above the ceiling the PCA variant refuses
+/// the take (a failure in the report, its hidden samples unfilled) and every other method
+/// still runs: they grow as `markers^2`, and the whole benchmark of a 3,000 x 5 take takes
+/// 15 s (release). 256 markers (about 20 s of PCA) is over three times the largest marker
+/// set in the shared data (76 points). Making the PCA itself cheap on short takes (a `T x T`
+/// Gram matrix instead of the `3P x 3P` covariance) is a change to `locap_clean`.
 pub const MAX_PCA_MARKERS: usize = 256;
 
 impl Variant {
