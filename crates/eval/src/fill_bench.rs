@@ -57,11 +57,36 @@ pub struct Method<'a> {
     pub fill: FillFn<'a>,
 }
 
+/// Most markers a take may have for the PCA fill to run on it in the benchmark.
+///
+/// The PCA fill ([`locap_clean::baseline::pca`]) eigen-decomposes a `3P x 3P` covariance
+/// matrix for every marker with gaps, `P` its predictors (nearly every other marker), so its
+/// cost grows as `markers^4` whatever the frame count: profiled on 5-frame takes with every
+/// tenth marker hidden in one frame, 100 / 200 / 400 markers took 0.5 / 8 / 232 s (release
+/// build; debug: 50 / 100 / 200 in 1.7 / 24 / 356 s), so 3,000 markers would take days
+/// (issue 14: `bench fill` "hangs" on 3,000 x 5). Above the ceiling the PCA variant refuses
+/// the take (a failure in the report, its hidden samples unfilled) and every other method
+/// still runs: they grow as `markers^2`, and the whole benchmark of a 3,000 x 5 take takes
+/// 15 s (release). 256 markers (about 20 s of PCA) is over three times the largest marker
+/// set in the shared data (76 points). Making the PCA itself cheap on short takes (a `T x T`
+/// Gram matrix instead of the `3P x 3P` covariance) is a change to `locap_clean`.
+pub const MAX_PCA_MARKERS: usize = 256;
+
 impl Variant {
-    /// This variant as a [`Method`] with `neighbours` neighbours.
+    /// This variant as a [`Method`] with `neighbours` neighbours (the PCA variant refuses
+    /// takes of more than [`MAX_PCA_MARKERS`] markers).
     pub fn method(self, neighbours: usize) -> Method<'static> {
         let config = FillConfig { method: self.method, neighbours, selection: self.selection };
-        Method { name: self.name(), fill: Box::new(move |take| Ok(fill_gaps(take, &config).take)) }
+        let fill = move |take: &Take| {
+            let m = take.marker_count();
+            if config.method == FillMethod::Pca && m > MAX_PCA_MARKERS {
+                return Err(format!(
+                    "{m} markers: the PCA fill's cost grows as markers^4, it runs on at most {MAX_PCA_MARKERS}"
+                ));
+            }
+            Ok(fill_gaps(take, &config).take)
+        };
+        Method { name: self.name(), fill: Box::new(fill) }
     }
 }
 
@@ -335,5 +360,29 @@ mod tests {
         assert_eq!(edm.scored_samples + edm.unfilled_samples, report.hidden_samples);
         assert!(edm.ompe_mean_mm < 1e-3, "{}", report.table());
         assert!(linear.ompe_mean_mm > 1.0, "{}", report.table());
+    }
+
+    /// 3,000 markers x 5 frames: the PCA variant refuses the take at once, with its reason in
+    /// the report; EDM and linear still fill it.
+    #[test]
+    fn pca_refuses_takes_above_its_marker_ceiling() {
+        let m = MAX_PCA_MARKERS + 1;
+        let names = (0..m).map(|i| MarkerName::parse(&format!("M{i}"))).collect();
+        let samples: Vec<Option<Vec3>> =
+            (0..5 * m).map(|i| Some(Vec3::new((i % m) as f64 * 3.0, (i / m) as f64, (i % 7) as f64 * 50.0))).collect();
+        let take = Take::from_samples(names, &samples, 120.0).unwrap();
+        let variants =
+            [FillMethod::Pca, FillMethod::Linear].map(|method| Variant { method, selection: Selection::Variance });
+        let report = run(&[("wide".into(), take)], &GapModel::uniform(0.2, 2), &variants, 6, 3);
+        assert!(report.hidden_samples > 0);
+        let (pca, linear) = (&report.methods[0], &report.methods[1]);
+        assert_eq!(
+            pca.failures,
+            vec![format!(
+                "wide: {m} markers: the PCA fill's cost grows as markers^4, it runs on at most {MAX_PCA_MARKERS}"
+            )]
+        );
+        assert_eq!(pca.unfilled_samples, report.hidden_samples);
+        assert!(linear.failures.is_empty());
     }
 }

@@ -83,9 +83,34 @@ impl Default for LabelBenchConfig {
     }
 }
 
+impl LabelBenchConfig {
+    /// Checks the settings before any take is unlabeled: fixed ghost counts up to
+    /// [`crate::unlabel::MAX_GHOSTS_PER_FRAME`] (`M` ghosts are checked per take, against its
+    /// marker count), positive frame rates and segment length.
+    ///
+    /// # Errors
+    /// [`LabelBenchError::Config`] naming the setting.
+    pub fn validate(&self) -> Result<(), LabelBenchError> {
+        let max = crate::unlabel::MAX_GHOSTS_PER_FRAME;
+        if let Some(n) = self.ghosts.iter().find_map(|g| matches!(g, GhostCount::Fixed(n) if *n > max).then(|| g)) {
+            return Err(LabelBenchError::Config(format!("{n} ghosts per frame (at most {max})")));
+        }
+        if let Some(r) = self.frame_rates_hz.iter().find(|r| !(r.is_finite() && **r > 0.0)) {
+            return Err(LabelBenchError::Config(format!("frame rate {r} Hz is not positive")));
+        }
+        if !(self.segment_s.is_finite() && self.segment_s > 0.0) {
+            return Err(LabelBenchError::Config(format!("segment length {} s is not positive", self.segment_s)));
+        }
+        Ok(())
+    }
+}
+
 /// Why the benchmark cannot run.
 #[derive(Debug, thiserror::Error)]
 pub enum LabelBenchError {
+    /// Settings out of range.
+    #[error("{0}")]
+    Config(String),
     /// A take could not be unlabeled.
     #[error("{take}: {error}")]
     Unlabel {
@@ -222,6 +247,7 @@ pub struct LabelBenchReport {
 /// Runs the benchmark; jobs (take x rate x ghosts x segment) run on all cores, each method
 /// timed on its own.
 pub fn run(takes: &[(String, Take)], config: &LabelBenchConfig) -> Result<LabelBenchReport, LabelBenchError> {
+    config.validate()?;
     let mut cases = Vec::new();
     for (t, (name, take)) in takes.iter().enumerate() {
         let template =
@@ -423,5 +449,16 @@ mod tests {
         assert_eq!(ours.score.samples, 60 * 6);
         assert!(ours.accuracy > 99.0, "{}", report.table());
         assert!(report.table().contains("ugm"));
+    }
+
+    /// `bench label --ghosts 100000` ran without bound: refused before any take is touched.
+    #[test]
+    fn ghost_counts_are_bounded() {
+        let config = LabelBenchConfig { ghosts: vec![GhostCount::Fixed(100_000)], ..LabelBenchConfig::default() };
+        let e = run(&[], &config).unwrap_err().to_string();
+        assert_eq!(e, "100000 ghosts per frame (at most 1000)");
+        let ok = LabelBenchConfig { ghosts: vec![GhostCount::Fixed(1000), GhostCount::PerMarker], ..config };
+        assert!(ok.validate().is_ok());
+        assert!(LabelBenchConfig { segment_s: 0.0, ..ok }.validate().is_err());
     }
 }

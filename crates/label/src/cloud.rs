@@ -5,7 +5,14 @@
 //! [`PointFrames`] stores the clouds of a whole take compactly (one flat buffer plus frame
 //! offsets) so the per-frame loop never allocates.
 
+use crate::LabelError;
 use locap_core::{Take, Vec3};
+
+/// Most points a take may hand the labeler (100 million: 76 points a frame for 1.5 hours at
+/// 240 Hz; 2.8 GB of clouds). Labels use the same ceiling for frames x template markers.
+pub const MAX_POINTS: usize = 100_000_000;
+/// Most frames a take may hand the labeler (10 million: 11.5 hours at 240 Hz).
+pub const MAX_FRAMES: usize = 10_000_000;
 
 /// The point clouds of a take, frame after frame, in millimetres.
 #[derive(Debug, Clone, PartialEq)]
@@ -21,8 +28,46 @@ pub struct PointFrames {
 impl PointFrames {
     /// Every valid sample of every column of `take` becomes a point of its frame, whatever
     /// the column's name: labels in the input are ignored on purpose.
+    ///
+    /// The points are counted first and checked against [`MAX_POINTS`] and [`MAX_FRAMES`],
+    /// then reserved exactly (no doubling growth), and an allocation the system refuses is an
+    /// error too, not an abort.
+    ///
+    /// # Errors
+    /// [`LabelError::TooLarge`] for a take beyond the ceilings or one memory cannot hold.
+    pub fn try_from_take(take: &Take) -> Result<PointFrames, LabelError> {
+        let (t, m) = (take.frame_count(), take.marker_count());
+        if t > MAX_FRAMES {
+            return Err(LabelError::TooLarge(format!("{t} frames (the labeler takes at most {MAX_FRAMES})")));
+        }
+        let n = (0..t).map(|f| (0..m).filter(|&k| take.is_valid(f, k)).count()).sum::<usize>();
+        if n > MAX_POINTS {
+            return Err(LabelError::TooLarge(format!("{n} points (the labeler takes at most {MAX_POINTS})")));
+        }
+        let mut frames = PointFrames::with_rate(take.frame_rate_hz());
+        let refused = |e: std::collections::TryReserveError| LabelError::TooLarge(format!("{n} points: {e}"));
+        frames.points_mm.try_reserve_exact(n).map_err(refused)?;
+        frames.columns.try_reserve_exact(n).map_err(refused)?;
+        frames.offsets.try_reserve_exact(t).map_err(refused)?;
+        frames.fill_from(take);
+        Ok(frames)
+    }
+
+    /// [`PointFrames::try_from_take`] for takes known to be of a sane size (tests, takes built
+    /// in memory): it reserves exactly too, but checks no ceiling.
     pub fn from_take(take: &Take) -> PointFrames {
         let mut frames = PointFrames::with_rate(take.frame_rate_hz());
+        let n = (0..take.frame_count()).map(|f| (0..take.marker_count()).filter(|&k| take.is_valid(f, k)).count());
+        let n = n.sum::<usize>();
+        frames.points_mm.reserve_exact(n);
+        frames.columns.reserve_exact(n);
+        frames.offsets.reserve_exact(take.frame_count());
+        frames.fill_from(take);
+        frames
+    }
+
+    fn fill_from(&mut self, take: &Take) {
+        let frames = self;
         for f in 0..take.frame_count() {
             for m in 0..take.marker_count() {
                 if let Some(p) = take.position_mm(f, m) {
@@ -32,7 +77,6 @@ impl PointFrames {
             }
             frames.offsets.push(frames.points_mm.len());
         }
-        frames
     }
 
     /// An empty sequence at `frame_rate_hz`; add frames with [`PointFrames::push_frame`].
@@ -105,7 +149,16 @@ mod tests {
         assert_eq!(frames.columns(1), &[1]);
         assert_eq!(frames.max_points(), 1);
         assert_eq!(frames.point_count(), 2);
+        assert_eq!(PointFrames::try_from_take(&take).unwrap(), frames);
         let second = frames.slice_frames(1..2);
         assert_eq!((second.frame_count(), second.frame(0), second.columns(0)), (1, frames.frame(1), &[1u32][..]));
+    }
+
+    /// A take beyond the frame ceiling is an error before anything is counted or reserved.
+    #[test]
+    fn too_many_frames_is_an_error() {
+        let take = Take::empty(vec![], MAX_FRAMES + 1, 100.0).unwrap();
+        let e = PointFrames::try_from_take(&take).unwrap_err();
+        assert!(matches!(&e, LabelError::TooLarge(s) if s.starts_with("10000001 frames")), "{e}");
     }
 }

@@ -45,6 +45,9 @@ pub enum LabelError {
     /// Settings or inputs that do not fit together.
     #[error("{0}")]
     Config(String),
+    /// A take too large to label (see [`cloud::MAX_POINTS`]).
+    #[error("the take is too large to label: {0}")]
+    TooLarge(String),
 }
 
 /// How labeling starts.
@@ -194,6 +197,14 @@ pub fn label_frames(
         return Err(LabelError::Config("the take has no frames".into()));
     }
     let m = template.marker_count();
+    // Labels hold one entry per frame and template marker: bound them like the clouds.
+    if frames.frame_count().saturating_mul(m) > cloud::MAX_POINTS {
+        return Err(LabelError::TooLarge(format!(
+            "{} frames x {m} template markers (at most {} labels)",
+            frames.frame_count(),
+            cloud::MAX_POINTS
+        )));
+    }
     let first = frames.frame(0);
     let (initial, fit) = match start {
         Start::Fit(fit_config, up) => {

@@ -9,6 +9,7 @@
 //! predicts a residual offset for the occluded samples only, trained with Eq. 3.
 //!
 //! * [`model`]: the network (graph convolution, biLSTM, offset head).
+//! * [`limits`]: the documented ceilings on network, batch and window sizes.
 //! * [`features`]: a take to network inputs (EDM fill, local frame, normalisation) and back.
 //! * [`refiner`]: the versioned model file and inference over overlapping windows.
 //! * [`shipped`]: the trained refiners built into locap.
@@ -18,6 +19,7 @@
 //!   schedule, validation, checkpoints and resume, loss curve.
 
 pub mod features;
+pub mod limits;
 pub mod model;
 pub mod refiner;
 pub mod shipped;
@@ -52,6 +54,24 @@ pub enum NnError {
     /// Reading training data failed.
     #[error(transparent)]
     Shard(#[from] locap_synth::shard::ShardError),
+    /// A shard file that cannot be read.
+    #[error("{path}: {source}")]
+    ShardFile {
+        /// The file.
+        path: String,
+        /// What is wrong with it.
+        source: locap_synth::shard::ShardError,
+    },
+    /// A size above its ceiling (see [`limits`]).
+    #[error("{what} {value} is above its ceiling {max}")]
+    Limit {
+        /// The setting.
+        what: &'static str,
+        /// Its value.
+        value: u64,
+        /// The ceiling.
+        max: u64,
+    },
     /// Augmentation settings out of range.
     #[error(transparent)]
     Augment(#[from] locap_synth::augment::AugmentError),

@@ -38,6 +38,18 @@ pub struct Architecture {
 impl Architecture {
     /// Number of input features per marker: local x, y, z and the visibility flag.
     pub const INPUT_FEATURES: usize = 4;
+
+    /// The number of weights [`RefinerNet::new`] makes, in `f64` so that sizes read from a
+    /// file cannot overflow it (checked against [`crate::limits::MAX_WEIGHTS`] before
+    /// building).
+    pub fn weights(&self) -> f64 {
+        let (m, e, c, h) =
+            (self.markers as f64, (self.neighbours + 1) as f64, self.channels as f64, self.hidden as f64);
+        let conv = |c_in: f64| m * e * c_in * c + m * c;
+        // burn's LSTM gate: an input and a hidden linear layer, each with a bias.
+        let lstm = 2.0 * 4.0 * (m * c * h + h * h + 2.0 * h);
+        conv(Self::INPUT_FEATURES as f64) + conv(c) + lstm + 2.0 * h * 3.0 * m + 3.0 * m
+    }
 }
 
 /// One Eq. 4 graph convolution layer: a filter `W_ij` per edge and a bias `b_i` per node.
@@ -156,6 +168,8 @@ mod tests {
         let arch = Architecture { markers: 5, neighbours: 2, channels: 4, hidden: 8 };
         let graph: Vec<Vec<usize>> = (0..5).map(|i| vec![(i + 1) % 5, (i + 2) % 5]).collect();
         let net = RefinerNet::new(&arch, &device);
+        // The estimate the ceiling is checked on is the network's exact size.
+        assert_eq!(arch.weights(), net.num_params() as f64);
         let x = Tensor::<4>::ones([2, 7, 5, 4], &device);
         let y = net.forward(x, gather_indices(&graph, &device));
         assert_eq!(y.dims(), [2, 7, 5, 3]);

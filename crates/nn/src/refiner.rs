@@ -105,6 +105,13 @@ impl ModelMeta {
         if self.window < 2 || a.channels == 0 || a.hidden == 0 {
             return bad(format!("window {} / channels {} / hidden {}", self.window, a.channels, a.hidden));
         }
+        // A model file is input too: its sizes must not allocate without bound either.
+        let limit = |e: NnError| NnError::BadModel(e.to_string());
+        use crate::limits::{self, check};
+        check("window", self.window, limits::MAX_WINDOW).map_err(limit)?;
+        check("channels", a.channels, limits::MAX_CHANNELS).map_err(limit)?;
+        check("hidden", a.hidden, limits::MAX_HIDDEN).map_err(limit)?;
+        limits::check_weights(a.weights()).map_err(limit)?;
         Ok(())
     }
 }

@@ -127,7 +127,21 @@ impl Default for TrainConfig {
 }
 
 impl TrainConfig {
-    fn check(&self) -> Result<(), NnError> {
+    /// Checks the settings before anything is allocated: sizes within [`crate::limits`],
+    /// rates and fractions in range. [`train`] calls it; a command line can call it first.
+    ///
+    /// # Errors
+    /// [`NnError::Limit`] for a size above its ceiling, [`NnError::Data`] for others.
+    pub fn validate(&self) -> Result<(), NnError> {
+        use crate::limits::{self, check};
+        check("window", self.window, limits::MAX_WINDOW)?;
+        check("margin", self.margin, limits::MAX_WINDOW)?;
+        check("batch", self.batch, limits::MAX_BATCH_WINDOWS)?;
+        check("channels", self.channels, limits::MAX_CHANNELS)?;
+        check("hidden", self.hidden, limits::MAX_HIDDEN)?;
+        check("neighbours", self.neighbours, limits::MAX_NEIGHBOURS)?;
+        check("EDM neighbours", self.edm_neighbours, limits::MAX_NEIGHBOURS)?;
+        check("validation windows", self.validation_windows, limits::MAX_VALIDATION_WINDOWS)?;
         let bad = |s: String| Err(NnError::Data(s));
         if self.window < 2 || self.batch == 0 || self.channels == 0 || self.hidden == 0 || self.neighbours == 0 {
             return bad(format!(
@@ -174,24 +188,23 @@ pub struct TrainingData {
     pub names: Vec<String>,
 }
 
-/// The clean markers of one shard as a take.
+/// The clean markers of the shard `reader` reads, as a take (`name` goes into errors). Give
+/// it a reader made with [`ShardReader::with_len`] (as [`crate::solver::data::open_shard`]
+/// does): its frame count is checked against the data, and the take is sized from it.
 ///
 /// # Errors
-/// Not a shard, or cut short.
-pub fn read_shard(reader: impl std::io::Read) -> Result<Take, NnError> {
-    let mut reader = ShardReader::new(reader)?;
+/// Cut short, or a sample that is not finite.
+pub fn read_shard<R: std::io::Read>(mut reader: ShardReader<R>, name: &str) -> Result<Take, NnError> {
     let header = reader.header().clone();
-    let (m, r) = (header.markers.len(), header.record_len());
-    let mut samples = Vec::with_capacity(header.frames * m);
-    while let Some(chunk) = reader.next_chunk(1024)? {
-        for record in chunk.data.chunks_exact(r) {
-            samples.extend(
-                record[..3 * m].chunks_exact(3).map(|p| Some(Vec3::new(p[0] as f64, p[1] as f64, p[2] as f64))),
-            );
+    let mut samples = crate::solver::data::reserve(header.frames.saturating_mul(header.markers.len()), name)?;
+    let at = |source| NnError::ShardFile { path: name.to_string(), source };
+    while let Some(chunk) = reader.next_chunk(1024).map_err(at)? {
+        for record in chunk.records() {
+            samples.extend(record.clean_mm().map(|p| Some(Vec3::new(p[0] as f64, p[1] as f64, p[2] as f64))));
         }
     }
     let names = header.markers.iter().map(|l| MarkerName::parse(l)).collect();
-    Take::from_samples(names, &samples, header.frame_rate_hz).map_err(|e| NnError::Data(format!("shard: {e}")))
+    Take::from_samples(names, &samples, header.frame_rate_hz).map_err(|e| NnError::Data(format!("{name}: {e}")))
 }
 
 impl TrainingData {
@@ -214,10 +227,6 @@ impl TrainingData {
     /// # Errors
     /// No takes, unreadable files, or a take lacking some of the first take's markers.
     pub fn from_paths(paths: &[PathBuf]) -> Result<TrainingData, NnError> {
-        let io = |p: &Path| {
-            let p = p.display().to_string();
-            move |source| NnError::Io { path: p, source }
-        };
         let is = |p: &Path, ext: &str| p.extension().is_some_and(|e| e.eq_ignore_ascii_case(ext));
         let (mut shards, mut c3ds): (Vec<PathBuf>, Vec<PathBuf>) = (Vec::new(), Vec::new());
         for path in paths {
@@ -254,8 +263,7 @@ impl TrainingData {
                 let file = locap_io::c3d::read_path(p).map_err(|e| at(e.to_string()))?;
                 file.to_take().map_err(|e| at(e.to_string()))
             } else {
-                let file = std::fs::File::open(p).map_err(io(p))?;
-                read_shard(std::io::BufReader::new(file)).map_err(|e| at(e.to_string()))
+                read_shard(crate::solver::data::open_shard(p)?, &p.display().to_string())
             }
         };
         let all: Vec<PathBuf> = shards.into_iter().chain(c3ds).collect();
@@ -568,7 +576,7 @@ pub fn train(
     checkpoints: Option<&Checkpoints>,
     progress: &mut dyn FnMut(&Progress),
 ) -> Result<(Refiner, TrainReport), NnError> {
-    config.check()?;
+    config.validate()?;
     let m = data.markers.len();
     if config.neighbours >= m {
         return Err(NnError::Data(format!("{} graph neighbours need more than {m} markers", config.neighbours)));
@@ -613,6 +621,7 @@ pub fn train(
     let graph = neighbour_graph(longest, &identity, config.neighbours);
     let architecture =
         Architecture { markers: m, neighbours: config.neighbours, channels: config.channels, hidden: config.hidden };
+    crate::limits::check_weights(architecture.weights())?;
     let meta = ModelMeta {
         markers: data.markers.clone(),
         neighbours: graph.clone(),

@@ -90,6 +90,22 @@ pub enum HandError {
     /// Building the skeleton or motion failed.
     #[error(transparent)]
     Skeleton(#[from] SkeletonError),
+    /// More procedural takes asked for than [`MAX_PROCEDURAL_TAKES`].
+    #[error("{0} procedural takes per hand asked for (at most {MAX_PROCEDURAL_TAKES})")]
+    TooManyTakes(usize),
+}
+
+/// Most procedural takes per hand and export (1,000: each is a full-length copy of the
+/// captured wrist motion, so 1,000 takes of a one-minute 60 Hz export are 3.6 M frames of
+/// training data, more than a hand network needs; a million would run for days).
+pub const MAX_PROCEDURAL_TAKES: usize = 1000;
+
+/// Checks a count of procedural takes before any is made.
+///
+/// # Errors
+/// [`HandError::TooManyTakes`] above [`MAX_PROCEDURAL_TAKES`].
+pub fn check_procedural_count(takes: usize) -> Result<(), HandError> {
+    if takes > MAX_PROCEDURAL_TAKES { Err(HandError::TooManyTakes(takes)) } else { Ok(()) }
 }
 
 /// How well [`fit_art_hand`] reproduces the captured points.
@@ -494,6 +510,13 @@ mod tests {
         let (_, lo, hi) = &report.flexion_range_deg[1];
         assert!(*lo > -5.0 && *hi > 30.0, "{:?}", report.flexion_range_deg);
         assert!(matches!(fit_art_hand(&take, Side::Right), Err(HandError::MissingPoint(_))));
+    }
+
+    /// `hands --procedural 1000000` ran for days: refused up front.
+    #[test]
+    fn procedural_count_is_bounded() {
+        assert_eq!(check_procedural_count(MAX_PROCEDURAL_TAKES), Ok(()));
+        assert_eq!(check_procedural_count(1_000_000), Err(HandError::TooManyTakes(1_000_000)));
     }
 
     /// Procedural fingers stay within their limits and are smooth; the layout binds.

@@ -26,7 +26,15 @@
 //! before it existed read with `skeleton: None`.
 //!
 //! Fixed-size records make the file seekable (`offset = data_start + frame * R * 4`) and
-//! memory-mappable; [`ShardReader`] streams it in chunks from any `Read`.
+//! memory-mappable; [`ShardReader`] streams it in chunks from any `Read`, and [`Record`] is
+//! the one decoder of the record layout (consumers never index records by hand).
+//!
+//! # Reading untrusted shards
+//! A shard is input like any other: the reader checks every count in the header against
+//! documented ceilings ([`MAX_HEADER_BYTES`], [`MAX_MARKERS`], [`MAX_JOINTS`]) and, given the
+//! file's length ([`ShardReader::with_len`]), the frame count against the bytes that are
+//! there, before anything is allocated from them. A shard with trailing bytes after its last
+//! record is refused too: the writer never makes one, so it means a header that undercounts.
 
 use crate::synthesize::LabFrame;
 use locap_core::{Motion, Skeleton, Take};
@@ -37,8 +45,15 @@ use std::io::{Read, Write};
 pub const MAGIC: &[u8; 8] = b"LOCAPSHD";
 /// The format version written.
 pub const VERSION: u32 = 1;
-/// Largest header accepted when reading (guards the allocation against corrupt files).
-const MAX_HEADER_BYTES: u32 = 16 << 20;
+/// Largest header read, bytes (16 MiB: a 4,096-marker, 1,024-joint header is under 0.5 MiB).
+pub const MAX_HEADER_BYTES: u32 = 16 << 20;
+/// Most markers a shard may declare (body, hands and face sets have a few hundred at most).
+pub const MAX_MARKERS: usize = 4096;
+/// Most joints a shard may declare (CMU skeletons have 31, detailed hands add about 40).
+pub const MAX_JOINTS: usize = 1024;
+/// Largest chunk [`ShardReader::next_chunk`] reads at once, bytes (64 MiB); one record of the
+/// largest shard is under 0.2 MiB, so every chunk holds at least one frame.
+pub const MAX_CHUNK_BYTES: usize = 64 << 20;
 
 /// Errors reading or writing shards.
 #[derive(Debug, thiserror::Error)]
@@ -55,6 +70,12 @@ pub enum ShardError {
     /// A header that is too long, not JSON, or inconsistent.
     #[error("bad shard header: {0}")]
     Header(String),
+    /// The file ends early (in the header, or in the frame named).
+    #[error("the shard is cut short: it ends inside {0}")]
+    Truncated(String),
+    /// The file's length is not what its header promises.
+    #[error("the shard's size does not match its header: {0}")]
+    Size(String),
     /// The takes and motion given to the writer do not line up.
     #[error("cannot write shard: {0}")]
     Shape(String),
@@ -86,6 +107,11 @@ impl ShardHeader {
     pub fn record_len(&self) -> usize {
         7 * self.markers.len() + 7 * self.joints.len()
     }
+
+    /// Bytes of all frame records, `None` if that overflows a `u64`.
+    pub fn data_len(&self) -> Option<u64> {
+        (self.frames as u64).checked_mul(4 * self.record_len() as u64)
+    }
 }
 
 /// Writes one shard: `clean` (ground truth) and `observed` (corrupted) takes of the same
@@ -109,6 +135,13 @@ pub fn write_shard(
         && mo.frame_count() != t
     {
         return Err(ShardError::Shape(format!("take has {t} frames, motion has {}", mo.frame_count())));
+    }
+    // Never write what the reader refuses.
+    let j = motion.map_or(0, |mo| mo.skeleton.len());
+    if m == 0 || m > MAX_MARKERS || j > MAX_JOINTS {
+        return Err(ShardError::Shape(format!(
+            "{m} markers and {j} joints (1 to {MAX_MARKERS} markers, at most {MAX_JOINTS} joints)"
+        )));
     }
     let header = ShardHeader {
         frames: t,
@@ -173,9 +206,75 @@ pub struct Chunk {
     pub frames: usize,
     /// `frames x record_len` values, record after record.
     pub data: Vec<f32>,
+    markers: usize,
+    joints: usize,
+}
+
+impl Chunk {
+    /// The chunk's frame records, typed: the one place that knows the record layout.
+    pub fn records(&self) -> impl ExactSizeIterator<Item = Record<'_>> {
+        let len = 7 * (self.markers + self.joints);
+        // `ShardReader` refuses shards without markers, so `len` is never 0.
+        self.data.chunks_exact(len).map(|values| Record { values, markers: self.markers, joints: self.joints })
+    }
+}
+
+/// One frame record (see the module docs for the layout).
+#[derive(Debug, Clone, Copy)]
+pub struct Record<'a> {
+    values: &'a [f32],
+    markers: usize,
+    joints: usize,
+}
+
+impl<'a> Record<'a> {
+    fn triples(values: &'a [f32]) -> impl ExactSizeIterator<Item = [f32; 3]> + 'a {
+        values.as_chunks::<3>().0.iter().copied()
+    }
+
+    /// Ground-truth marker positions, mm, header marker order.
+    pub fn clean_mm(&self) -> impl ExactSizeIterator<Item = [f32; 3]> + 'a {
+        Record::triples(&self.values[..3 * self.markers])
+    }
+
+    /// Corrupted marker positions, mm (occluded samples are zeros: see [`Record::observed_mm`]).
+    pub fn observed_raw_mm(&self) -> impl ExactSizeIterator<Item = [f32; 3]> + 'a {
+        Record::triples(&self.values[3 * self.markers..6 * self.markers])
+    }
+
+    /// Whether each observed sample exists (the stored flag is 1.0 or 0.0; above 0.5 counts).
+    pub fn visible(&self) -> impl ExactSizeIterator<Item = bool> + 'a {
+        self.values[6 * self.markers..7 * self.markers].iter().map(|v| *v > 0.5)
+    }
+
+    /// Corrupted marker positions, mm, `None` where occluded.
+    pub fn observed_mm(&self) -> impl ExactSizeIterator<Item = Option<[f32; 3]>> + 'a {
+        self.observed_raw_mm().zip(self.visible()).map(|(p, v)| v.then_some(p))
+    }
+
+    /// Global joint positions, lab frame, mm, header joint order.
+    pub fn joint_positions_mm(&self) -> impl ExactSizeIterator<Item = [f32; 3]> + 'a {
+        let m = 7 * self.markers;
+        Record::triples(&self.values[m..m + 3 * self.joints])
+    }
+
+    /// Local joint rotations as quaternions `(x, y, z, w)`, header joint order.
+    pub fn joint_rotations_xyzw(&self) -> impl ExactSizeIterator<Item = [f32; 4]> + 'a {
+        let m = 7 * self.markers + 3 * self.joints;
+        self.values[m..].as_chunks::<4>().0.iter().copied()
+    }
 }
 
 /// Streams a shard in chunks of frames.
+///
+/// # Bounds
+/// Nothing a file says is allocated before it is checked. The header's length is capped
+/// ([`MAX_HEADER_BYTES`]) and its marker and joint counts too ([`MAX_MARKERS`],
+/// [`MAX_JOINTS`]). Given the file's length ([`ShardReader::with_len`]), the frame count must
+/// account for the file's bytes exactly, so a caller may reserve `frames x record` up front.
+/// Over a stream of unknown length ([`ShardReader::new`]) the frame count is only a promise:
+/// a chunk is at most [`MAX_CHUNK_BYTES`] and its buffer grows with the bytes that actually
+/// arrive, so a lying header ends in [`ShardError::Truncated`], never in a huge allocation.
 pub struct ShardReader<R: Read> {
     reader: R,
     header: ShardHeader,
@@ -183,36 +282,80 @@ pub struct ShardReader<R: Read> {
 }
 
 impl<R: Read> ShardReader<R> {
-    /// Reads and checks the header.
-    pub fn new(mut reader: R) -> Result<ShardReader<R>, ShardError> {
+    /// Reads and checks the header of a shard of unknown length.
+    ///
+    /// # Errors
+    /// Not a shard, an unknown version, a header that is cut short, not JSON, or out of
+    /// bounds (see the type's docs).
+    pub fn new(reader: R) -> Result<ShardReader<R>, ShardError> {
+        ShardReader::open(reader, None)
+    }
+
+    /// Reads and checks the header of a shard of `len` bytes (a file's length), and that the
+    /// frame records fill the rest of it exactly: a file cut short, or a header claiming more
+    /// (or fewer) frames than the file holds, is [`ShardError::Size`].
+    ///
+    /// # Errors
+    /// As [`ShardReader::new`], and the size check.
+    pub fn with_len(reader: R, len: u64) -> Result<ShardReader<R>, ShardError> {
+        ShardReader::open(reader, Some(len))
+    }
+
+    fn open(mut reader: R, file_len: Option<u64>) -> Result<ShardReader<R>, ShardError> {
+        let cut = |e: std::io::Error| match e.kind() {
+            std::io::ErrorKind::UnexpectedEof => ShardError::Truncated("the header".into()),
+            _ => ShardError::Io(e),
+        };
         let mut magic = [0u8; 8];
-        reader.read_exact(&mut magic)?;
+        reader.read_exact(&mut magic).map_err(cut)?;
         if &magic != MAGIC {
             return Err(ShardError::BadMagic(magic));
         }
         let mut word = [0u8; 4];
-        reader.read_exact(&mut word)?;
+        reader.read_exact(&mut word).map_err(cut)?;
         let version = u32::from_le_bytes(word);
         if version != VERSION {
             return Err(ShardError::Version(version));
         }
-        reader.read_exact(&mut word)?;
+        reader.read_exact(&mut word).map_err(cut)?;
         let len = u32::from_le_bytes(word);
         if len > MAX_HEADER_BYTES {
             return Err(ShardError::Header(format!("header of {len} bytes is longer than {MAX_HEADER_BYTES}")));
         }
-        let mut json = vec![0u8; len as usize];
-        reader.read_exact(&mut json)?;
+        let data_start = 16 + u64::from(len).next_multiple_of(4);
+        if let Some(file_len) = file_len
+            && file_len < data_start
+        {
+            return Err(ShardError::Size(format!("{file_len} bytes cannot hold the {len}-byte header it announces")));
+        }
+        // `read_to_end` grows the buffer with the bytes that arrive, not with what `len` says.
+        let mut json = Vec::new();
+        (&mut reader).take(u64::from(len)).read_to_end(&mut json)?;
+        if json.len() != len as usize {
+            return Err(ShardError::Truncated("the header".into()));
+        }
         let header: ShardHeader = serde_json::from_slice(&json).map_err(|e| ShardError::Header(e.to_string()))?;
-        if let Some(sk) = &header.skeleton {
-            // Deserialising bypasses the skeleton's checks: run them, and match the joints.
-            Skeleton::new(sk.joints().to_vec()).map_err(|e| ShardError::Header(format!("skeleton: {e}")))?;
-            if sk.joints().iter().map(|j| &j.name).ne(header.joints.iter()) {
-                return Err(ShardError::Header("the skeleton's joints are not the header's joints".into()));
-            }
+        check_header(&header)?;
+        let data_len = header.data_len().ok_or_else(|| {
+            ShardError::Header(format!(
+                "{} frames of {} values overflow a file length",
+                header.frames,
+                header.record_len()
+            ))
+        })?;
+        if let Some(file_len) = file_len
+            && file_len - data_start != data_len
+        {
+            return Err(ShardError::Size(format!(
+                "the header promises {} frames of {} bytes ({} bytes after the header), the file has {}",
+                header.frames,
+                4 * header.record_len(),
+                data_len,
+                file_len - data_start
+            )));
         }
         let mut pad = [0u8; 3];
-        reader.read_exact(&mut pad[..(4 - len as usize % 4) % 4])?;
+        reader.read_exact(&mut pad[..(4 - len as usize % 4) % 4]).map_err(cut)?;
         Ok(ShardReader { reader, header, next_frame: 0 })
     }
 
@@ -221,20 +364,54 @@ impl<R: Read> ShardReader<R> {
         &self.header
     }
 
-    /// The next at most `max_frames` frames; `None` at the end. A file cut short is an error.
+    /// The next at most `max_frames` frames (fewer when a chunk would pass
+    /// [`MAX_CHUNK_BYTES`]); `None` at the end.
+    ///
+    /// # Errors
+    /// The data ends before the header's frame count ([`ShardError::Truncated`]), or reading
+    /// fails.
     pub fn next_chunk(&mut self, max_frames: usize) -> Result<Option<Chunk>, ShardError> {
-        let frames = max_frames.max(1).min(self.header.frames - self.next_frame);
+        let record_bytes = 4 * self.header.record_len();
+        let frames = max_frames.max(1).min(self.header.frames - self.next_frame).min(MAX_CHUNK_BYTES / record_bytes);
         if frames == 0 {
             return Ok(None);
         }
-        let n = frames * self.header.record_len();
-        let mut bytes = vec![0u8; n * 4];
-        self.reader.read_exact(&mut bytes)?;
-        let data = bytes.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect();
-        let chunk = Chunk { first_frame: self.next_frame, frames, data };
+        let n = frames * record_bytes;
+        let mut bytes = Vec::new();
+        (&mut self.reader).take(n as u64).read_to_end(&mut bytes)?;
+        if bytes.len() != n {
+            let frame = self.next_frame + bytes.len() / record_bytes;
+            return Err(ShardError::Truncated(format!("frame {frame} of {}", self.header.frames)));
+        }
+        let data = bytes.as_chunks::<4>().0.iter().map(|b| f32::from_le_bytes(*b)).collect();
+        let (markers, joints) = (self.header.markers.len(), self.header.joints.len());
+        let chunk = Chunk { first_frame: self.next_frame, frames, data, markers, joints };
         self.next_frame += frames;
         Ok(Some(chunk))
     }
+}
+
+/// The checks serde cannot make: counts within bounds, a usable frame rate, a skeleton that
+/// is one and matches the joints.
+fn check_header(header: &ShardHeader) -> Result<(), ShardError> {
+    let (m, j) = (header.markers.len(), header.joints.len());
+    if m == 0 || m > MAX_MARKERS {
+        return Err(ShardError::Header(format!("{m} markers (1 to {MAX_MARKERS} are read)")));
+    }
+    if j > MAX_JOINTS {
+        return Err(ShardError::Header(format!("{j} joints (at most {MAX_JOINTS} are read)")));
+    }
+    if !(header.frame_rate_hz.is_finite() && header.frame_rate_hz > 0.0) {
+        return Err(ShardError::Header(format!("frame rate {} Hz is not positive", header.frame_rate_hz)));
+    }
+    if let Some(sk) = &header.skeleton {
+        // Deserialising bypasses the skeleton's checks: run them, and match the joints.
+        Skeleton::new(sk.joints().to_vec()).map_err(|e| ShardError::Header(format!("skeleton: {e}")))?;
+        if sk.joints().iter().map(|j| &j.name).ne(header.joints.iter()) {
+            return Err(ShardError::Header("the skeleton's joints are not the header's joints".into()));
+        }
+    }
+    Ok(())
 }
 
 #[cfg(test)]
@@ -285,7 +462,8 @@ mod tests {
         assert!(matches!(ShardReader::new(v2.as_slice()), Err(ShardError::Version(2))));
         let truncated = &bytes[..bytes.len() - 3];
         let mut reader = ShardReader::new(truncated).unwrap();
-        assert!(matches!(reader.next_chunk(10), Err(ShardError::Io(_))));
+        assert!(matches!(reader.next_chunk(10), Err(ShardError::Truncated(_))));
+        assert!(matches!(ShardReader::with_len(truncated, truncated.len() as u64), Err(ShardError::Size(_))));
         let short = clean.slice_frames(0..3);
         assert!(matches!(
             write_shard(&mut Vec::new(), &short, &observed, None, LabFrame::Motion),
@@ -326,5 +504,112 @@ mod tests {
         bad.extend_from_slice(&text);
         bad.extend_from_slice(&[0u8; 3][..(4 - text.len() % 4) % 4]);
         assert!(matches!(ShardReader::new(bad.as_slice()), Err(ShardError::Header(_))));
+    }
+
+    /// A shard built by hand from a JSON header and `data` bytes after it.
+    fn handmade(header: &serde_json::Value, data: &[u8]) -> Vec<u8> {
+        let text = serde_json::to_vec(header).unwrap();
+        let mut bytes = Vec::new();
+        bytes.extend_from_slice(MAGIC);
+        bytes.extend_from_slice(&VERSION.to_le_bytes());
+        bytes.extend_from_slice(&(text.len() as u32).to_le_bytes());
+        bytes.extend_from_slice(&text);
+        bytes.extend_from_slice(&[0u8; 3][..(4 - text.len() % 4) % 4]);
+        bytes.extend_from_slice(data);
+        bytes
+    }
+
+    fn header_json(frames: u64, markers: usize) -> serde_json::Value {
+        let names: Vec<String> = (0..markers).map(|k| format!("M{k}")).collect();
+        serde_json::json!({"frames": frames, "frame_rate_hz": 120.0, "markers": names, "joints": [],
+            "record": [], "lab": "motion"})
+    }
+
+    /// Records decode through `Record`: clean, observed with visibility, joints.
+    #[test]
+    fn records_are_typed() {
+        use crate::test_util::joint;
+        let (clean, observed) = takes();
+        let sk = Skeleton::new(vec![joint("root", None, [0.0; 3])]).unwrap();
+        let rot = vec![locap_core::Quat::identity(); 5];
+        let motion = Motion::new(sk, rot, vec![Vec3::new(1.0, 2.0, 3.0); 5], 100.0).unwrap();
+        let mut bytes = Vec::new();
+        write_shard(&mut bytes, &clean, &observed, Some(&motion), LabFrame::Motion).unwrap();
+        let mut reader = ShardReader::with_len(bytes.as_slice(), bytes.len() as u64).unwrap();
+        let chunk = reader.next_chunk(100).unwrap().unwrap();
+        assert_eq!(chunk.records().len(), 5);
+        let r = chunk.records().nth(2).unwrap();
+        assert_eq!(r.clean_mm().collect::<Vec<_>>(), vec![[4.0, 8.0, -1.5], [5.0, 10.0, -1.5]]);
+        assert_eq!(r.observed_mm().collect::<Vec<_>>(), vec![Some([4.0, 8.0, -1.5]), None]);
+        assert_eq!(r.visible().collect::<Vec<_>>(), vec![true, false]);
+        assert_eq!(r.joint_positions_mm().collect::<Vec<_>>(), vec![[1.0, 2.0, 3.0]]);
+        assert_eq!(r.joint_rotations_xyzw().collect::<Vec<_>>(), vec![[0.0, 0.0, 0.0, 1.0]]);
+        assert!(reader.next_chunk(100).unwrap().is_none());
+    }
+
+    /// A 100-byte file, a header that claims 10^12 frames, or one that undercounts: typed
+    /// errors, and no allocation from the claim (a stream reads what is there, then stops).
+    #[test]
+    fn lying_sizes_are_errors() {
+        let (clean, observed) = takes();
+        let mut good = Vec::new();
+        write_shard(&mut good, &clean, &observed, None, LabFrame::Motion).unwrap();
+        let hundred = &good[..100];
+        assert!(matches!(ShardReader::with_len(hundred, 100), Err(ShardError::Size(_))));
+        assert!(matches!(ShardReader::new(hundred), Err(ShardError::Truncated(_))));
+
+        let liar = handmade(&header_json(1_000_000_000_000, 2), &[0u8; 14 * 4 * 3]);
+        let e = ShardReader::with_len(liar.as_slice(), liar.len() as u64).err().unwrap();
+        assert!(e.to_string().contains("1000000000000 frames"), "{e}");
+        let mut stream = ShardReader::new(liar.as_slice()).unwrap();
+        let e = stream.next_chunk(usize::MAX).unwrap_err();
+        assert!(matches!(&e, ShardError::Truncated(at) if at == "frame 3 of 1000000000000"), "{e}");
+
+        let mut trailing = good.clone();
+        trailing.extend_from_slice(&[0u8; 56]);
+        assert!(matches!(ShardReader::with_len(trailing.as_slice(), trailing.len() as u64), Err(ShardError::Size(_))));
+        // A frame count whose byte size overflows a u64.
+        let huge = handmade(&header_json(u64::MAX / 8, 2), &[]);
+        assert!(matches!(ShardReader::with_len(huge.as_slice(), huge.len() as u64), Err(ShardError::Header(_))));
+        // A header longer than the file, before reading it.
+        let mut long = good[..16].to_vec();
+        long[12..16].copy_from_slice(&(1u32 << 20).to_le_bytes());
+        assert!(matches!(ShardReader::with_len(long.as_slice(), 16), Err(ShardError::Size(_))));
+        assert!(matches!(ShardReader::new(long.as_slice()), Err(ShardError::Truncated(_))));
+    }
+
+    /// Marker and joint counts beyond the ceilings, no markers, a bad frame rate: refused on
+    /// reading, and never written.
+    #[test]
+    fn header_counts_are_bounded() {
+        for json in [header_json(0, 0), header_json(0, MAX_MARKERS + 1)] {
+            let bytes = handmade(&json, &[]);
+            assert!(matches!(ShardReader::new(bytes.as_slice()), Err(ShardError::Header(_))));
+        }
+        let mut joints = header_json(0, 1);
+        joints["joints"] = serde_json::json!(vec!["j"; MAX_JOINTS + 1]);
+        assert!(matches!(ShardReader::new(handmade(&joints, &[]).as_slice()), Err(ShardError::Header(_))));
+        let mut rate = header_json(0, 1);
+        rate["frame_rate_hz"] = serde_json::json!(0.0);
+        assert!(matches!(ShardReader::new(handmade(&rate, &[]).as_slice()), Err(ShardError::Header(_))));
+        let empty = Take::from_samples(vec![], &[], 100.0).unwrap();
+        assert!(matches!(
+            write_shard(&mut Vec::new(), &empty, &empty, None, LabFrame::Motion),
+            Err(ShardError::Shape(_))
+        ));
+    }
+
+    /// Chunks stay under `MAX_CHUNK_BYTES` whatever `max_frames` asks.
+    #[test]
+    fn chunks_are_bounded() {
+        let markers = 600; // 16,800 bytes a record: 3,994 records fit in 64 MiB
+        let per_chunk = MAX_CHUNK_BYTES / (7 * markers * 4);
+        let frames = per_chunk + 5;
+        let data = vec![0u8; frames * 7 * markers * 4];
+        let bytes = handmade(&header_json(frames as u64, markers), &data);
+        let mut reader = ShardReader::with_len(bytes.as_slice(), bytes.len() as u64).unwrap();
+        assert_eq!(reader.next_chunk(usize::MAX).unwrap().unwrap().frames, per_chunk);
+        assert_eq!(reader.next_chunk(usize::MAX).unwrap().unwrap().frames, 5);
+        assert!(reader.next_chunk(usize::MAX).unwrap().is_none());
     }
 }

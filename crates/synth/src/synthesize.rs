@@ -234,12 +234,40 @@ pub struct Synthesized {
     pub subject: Subject,
 }
 
+/// Highest output frame rate, Hz: the fastest optical systems film at a few kHz (Vicon
+/// Vantage 2 kHz, Qualisys Arqus about 1.4 kHz at full resolution, more windowed); 10 kHz is
+/// generous. Checked by [`SynthConfig::validate`] and [`resample`].
+pub const MAX_RATE_HZ: f64 = 10_000.0;
+/// Most frames a resample may produce (2 million: 4.6 hours at 120 Hz, 14 minutes at
+/// 2.4 kHz; about 1 KB of rotations a frame for a CMU skeleton, 2 GB), checked before any
+/// frame is allocated.
+pub const MAX_RESAMPLED_FRAMES: usize = 2_000_000;
+
+impl SynthConfig {
+    /// Checks the settings: the subject variation's ranges, and a rate in `(0, MAX_RATE_HZ]`.
+    ///
+    /// # Errors
+    /// [`SynthError::BadSetting`] naming the setting.
+    pub fn validate(&self) -> Result<(), SynthError> {
+        self.variation.check()?;
+        self.rate_hz.map_or(Ok(()), check_rate)
+    }
+}
+
+fn check_rate(rate_hz: f64) -> Result<(), SynthError> {
+    if !(rate_hz.is_finite() && rate_hz > 0.0 && rate_hz <= MAX_RATE_HZ) {
+        return Err(SynthError::BadSetting(format!("frame rate {rate_hz} Hz is not in (0, {MAX_RATE_HZ}] Hz")));
+    }
+    Ok(())
+}
+
 /// `motion` resampled to `rate_hz`: root positions interpolated linearly, rotations by slerp.
+///
+/// # Errors
+/// A rate out of `(0, MAX_RATE_HZ]`, no frames, or more than [`MAX_RESAMPLED_FRAMES`] out.
 /// The last output frame is the last one at or before the input's last frame.
 pub fn resample(motion: &Motion, rate_hz: f64) -> Result<Motion, SynthError> {
-    if !(rate_hz.is_finite() && rate_hz > 0.0) {
-        return Err(SynthError::BadSetting(format!("frame rate {rate_hz} Hz is not a positive number")));
-    }
+    check_rate(rate_hz)?;
     let n = motion.frame_count();
     if n == 0 {
         return Err(SynthError::NoFrames);
@@ -248,7 +276,14 @@ pub fn resample(motion: &Motion, rate_hz: f64) -> Result<Motion, SynthError> {
     if (rate_hz - src).abs() < 1e-9 {
         return Ok(motion.clone());
     }
-    let out_frames = (((n - 1) as f64) * rate_hz / src + 1e-9).floor() as usize + 1;
+    // In f64 first: a lying source rate or a huge ratio must not wrap before the check.
+    let out = ((n - 1) as f64 * rate_hz / src + 1e-9).floor() + 1.0;
+    if !(out <= MAX_RESAMPLED_FRAMES as f64) {
+        return Err(SynthError::BadSetting(format!(
+            "resampling {n} frames from {src} Hz to {rate_hz} Hz gives {out} frames (at most {MAX_RESAMPLED_FRAMES})"
+        )));
+    }
+    let out_frames = out as usize;
     let mut rotations = Vec::with_capacity(out_frames * motion.skeleton.len());
     let mut root = Vec::with_capacity(out_frames);
     for i in 0..out_frames {
@@ -288,7 +323,7 @@ pub fn synthesize(
     config: &SynthConfig,
     rng: &mut impl Rng,
 ) -> Result<Synthesized, SynthError> {
-    config.variation.check()?;
+    config.validate()?;
     if motion.frame_count() == 0 {
         return Err(SynthError::NoFrames);
     }
@@ -419,6 +454,12 @@ mod tests {
         let (a, b) = (m.local_rotations(0)[1], m.local_rotations(1)[1]);
         assert!((q.angle_to(&a) - q.angle_to(&b)).abs() < 1e-9);
         assert!(matches!(resample(&m, 0.0), Err(SynthError::BadSetting(_))));
+        // `synth --rate 1e9` allocated frames x rate: now refused before allocating.
+        assert!(matches!(resample(&m, 1e9), Err(SynthError::BadSetting(_))));
+        let e = resample(&m, MAX_RATE_HZ).map(|r| r.frame_count());
+        assert!(e.is_ok(), "{e:?}");
+        let config = SynthConfig { rate_hz: Some(1e9), ..SynthConfig::default() };
+        assert!(matches!(config.validate(), Err(SynthError::BadSetting(_))));
     }
 
     #[test]

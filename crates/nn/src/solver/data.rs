@@ -16,6 +16,8 @@ use locap_core::{MarkerName, Quat, Skeleton, Take, Vec3};
 use locap_synth::shard::ShardReader;
 use locap_synth::synthesize::LabFrame;
 use nalgebra::{Matrix3, Rotation3};
+use std::fs::File;
+use std::io::{BufReader, Read};
 use std::path::{Path, PathBuf};
 
 /// One shard with everything a solver needs.
@@ -37,35 +39,65 @@ pub struct SolverShard {
     pub lab: LabFrame,
 }
 
-/// Reads a shard that carries motion and its skeleton.
+/// Opens the shard file at `path`, its header checked against the file's length (see
+/// [`ShardReader::with_len`]): a truncated file or one whose header lies about its frame
+/// count is an error naming the file before anything is allocated from the header.
+///
+/// # Errors
+/// [`NnError::Io`] if the file cannot be opened, [`NnError::ShardFile`] if it is not a
+/// readable shard.
+pub fn open_shard(path: &Path) -> Result<ShardReader<BufReader<File>>, NnError> {
+    let name = path.display().to_string();
+    let io = |source| NnError::Io { path: name.clone(), source };
+    let file = File::open(path).map_err(io)?;
+    let len = file.metadata().map_err(io)?.len();
+    ShardReader::with_len(BufReader::new(file), len).map_err(|source| NnError::ShardFile { path: name, source })
+}
+
+/// An empty vector with room for `n` items, or an error naming the shard when memory cannot
+/// hold them (the counts are checked against the file's size, but a real file can still be
+/// larger than memory).
+pub(crate) fn reserve<T>(n: usize, name: &str) -> Result<Vec<T>, NnError> {
+    let mut v = Vec::new();
+    v.try_reserve_exact(n).map_err(|e| NnError::Data(format!("{name}: cannot hold the shard's {n} samples: {e}")))?;
+    Ok(v)
+}
+
+/// Reads a shard that carries motion and its skeleton (see [`open_shard`]).
 ///
 /// # Errors
 /// Not a shard, cut short, or written without motion or skeleton.
 pub fn read_solver_shard(path: &Path) -> Result<SolverShard, NnError> {
-    let name = path.display().to_string();
-    let file = std::fs::File::open(path).map_err(|source| NnError::Io { path: name.clone(), source })?;
-    let mut reader = ShardReader::new(std::io::BufReader::new(file))?;
+    solver_shard(open_shard(path)?, &path.display().to_string())
+}
+
+/// The solver data of the shard `reader` reads (`name` goes into errors). Give it a reader
+/// made with [`ShardReader::with_len`] (as [`open_shard`] does): its frame count is checked
+/// against the data, and the buffers are sized from it.
+///
+/// # Errors
+/// Cut short, or written without motion or skeleton.
+pub fn solver_shard<R: Read>(mut reader: ShardReader<R>, name: &str) -> Result<SolverShard, NnError> {
     let header = reader.header().clone();
     let skeleton = header.skeleton.clone().ok_or_else(|| {
         NnError::Data(format!("{name}: the shard has no skeleton (write it again with this locap's `locap synth`)"))
     })?;
-    let (m, j, r) = (header.markers.len(), header.joints.len(), header.record_len());
+    let (m, j, t) = (header.markers.len(), header.joints.len(), header.frames);
     if j == 0 {
         return Err(NnError::Data(format!("{name}: the shard has no joint motion")));
     }
-    let t = header.frames;
-    let (mut clean, mut observed) = (Vec::with_capacity(t * m), Vec::with_capacity(t * m));
-    let mut joint_positions_mm = Vec::with_capacity(t * j);
-    let mut rotations = Vec::with_capacity(t * j);
-    let v3 = |p: &[f32]| Vec3::new(p[0] as f64, p[1] as f64, p[2] as f64);
-    while let Some(chunk) = reader.next_chunk(1024)? {
-        for rec in chunk.data.chunks_exact(r) {
-            clean.extend(rec[..3 * m].chunks_exact(3).map(|p| Some(v3(p))));
-            let vis = &rec[6 * m..7 * m];
-            observed.extend(rec[3 * m..6 * m].chunks_exact(3).zip(vis).map(|(p, v)| (*v > 0.5).then(|| v3(p))));
-            joint_positions_mm.extend(rec[7 * m..7 * m + 3 * j].chunks_exact(3).map(v3));
-            rotations.extend(rec[7 * m + 3 * j..].chunks_exact(4).map(|q| {
-                Quat::from_quaternion(nalgebra::Quaternion::new(q[3] as f64, q[0] as f64, q[1] as f64, q[2] as f64))
+    let (mut clean, mut observed) = (reserve(t.saturating_mul(m), name)?, reserve(t.saturating_mul(m), name)?);
+    let mut joint_positions_mm = reserve(t.saturating_mul(j), name)?;
+    let mut rotations = reserve(t.saturating_mul(j), name)?;
+    let v3 = |p: [f32; 3]| Vec3::new(p[0] as f64, p[1] as f64, p[2] as f64);
+    let at = |source| NnError::ShardFile { path: name.to_string(), source };
+    while let Some(chunk) = reader.next_chunk(1024).map_err(at)? {
+        for rec in chunk.records() {
+            clean.extend(rec.clean_mm().map(|p| Some(v3(p))));
+            observed.extend(rec.observed_mm().map(|p| p.map(v3)));
+            joint_positions_mm.extend(rec.joint_positions_mm().map(v3));
+            rotations.extend(rec.joint_rotations_xyzw().map(|[x, y, z, w]| {
+                Quat::from_quaternion(nalgebra::Quaternion::new(w as f64, x as f64, y as f64, z as f64))
             }));
         }
     }
@@ -76,7 +108,7 @@ pub fn read_solver_shard(path: &Path) -> Result<SolverShard, NnError> {
     Ok(SolverShard {
         clean: take(&clean)?,
         observed: take(&observed)?,
-        name,
+        name: name.to_string(),
         skeleton,
         joint_positions_mm,
         rotations,

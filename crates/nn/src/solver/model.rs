@@ -91,6 +91,13 @@ impl SolverMeta {
             return bad(format!("{m} markers and {j} joints named, architecture {a:?}"));
         }
         self.graph.check(m, j).map_err(NnError::BadModel)?;
+        // A model file is input too: its sizes must not allocate without bound either (the
+        // MLP's width is 4 x global).
+        let limit = |e: NnError| NnError::BadModel(e.to_string());
+        use crate::limits::{self, check};
+        check("channels", a.channels, limits::MAX_CHANNELS).map_err(limit)?;
+        check("global", a.global, 4 * limits::MAX_GLOBAL).map_err(limit)?;
+        limits::check_weights(a.weights(&self.graph)).map_err(limit)?;
         if self.graph.parents.iter().ne(self.skeleton.joints().iter().map(|jj| &jj.parent)) {
             return bad("the graph's parents are not the skeleton's".into());
         }

@@ -147,6 +147,33 @@ pub struct SolverArchitecture {
 /// Input features per marker: normalised local x, y, z and visibility.
 pub const INPUT_FEATURES: usize = 4;
 
+impl SolverArchitecture {
+    /// The number of weights [`SolverNet::new`] makes on `graph`, in `f64` so that sizes
+    /// read from a file cannot overflow it (checked against [`crate::limits::MAX_WEIGHTS`]
+    /// before building).
+    pub fn weights(&self, graph: &SolverGraph) -> f64 {
+        let (m, j, c, g) = (self.markers as f64, self.joints as f64, self.channels as f64, self.global as f64);
+        let linear = |i: f64, o: f64| i * o + o;
+        if self.variant == Variant::Mlp {
+            let out = j * JOINT_OUTPUTS as f64 + 3.0;
+            return linear(m * INPUT_FEATURES as f64, g) + 3.0 * linear(g, g) + linear(g, out);
+        }
+        let (em, ei, ej) = edge_counts(graph, self.variant);
+        let conv =
+            |nodes: f64, edges: usize, c_in: f64, c_out: f64| nodes * edges as f64 * c_in * c_out + nodes * c_out;
+        conv(m, em, INPUT_FEATURES as f64, c)
+            + conv(m, em, c, c)
+            + linear(m * c, g)
+            + 2.0 * linear(g, g)
+            + conv(j, ei, c, c)
+            + linear(g, c)
+            + conv(j, ej, 2.0 * c, c)
+            + conv(j, ej, c, c)
+            + conv(j, ej, c, JOINT_OUTPUTS as f64)
+            + linear(g, 3.0)
+    }
+}
+
 /// Source indices of padded edge lists: node `i`'s edges at `i*E..(i+1)*E`, missing edges
 /// pointing at `pad` (a zero node appended to the source features).
 fn padded(lists: &[Vec<usize>], pad: usize) -> (Vec<i64>, usize) {
@@ -474,6 +501,8 @@ mod tests {
         for variant in [Variant::Graph, Variant::NoMarkerConv, Variant::Mlp] {
             let arch = SolverArchitecture { variant, markers: 6, joints: 4, channels: 5, global: 7 };
             let net = SolverNet::new(&arch, &graph, &device);
+            // The estimate the ceiling is checked on is the network's exact size.
+            assert_eq!(arch.weights(&graph), net.num_params() as f64, "{variant:?}");
             let (out, t) = net.forward(Tensor::ones([3, 6, 4], &device), &Gathers::new(&graph, variant, &device), 4);
             assert_eq!(out.dims(), [3, 4, JOINT_OUTPUTS], "{variant:?}");
             assert_eq!(t.dims(), [3, 3]);

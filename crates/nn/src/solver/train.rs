@@ -109,7 +109,19 @@ fn default_link() -> f64 {
 }
 
 impl SolverTrainConfig {
-    fn check(&self) -> Result<(), NnError> {
+    /// Checks the settings before anything is allocated: sizes within [`crate::limits`],
+    /// rates, fractions and thresholds in range. [`train_solver`] calls it; a command line
+    /// can call it first.
+    ///
+    /// # Errors
+    /// [`NnError::Limit`] for a size above its ceiling, [`NnError::Data`] for others.
+    pub fn validate(&self) -> Result<(), NnError> {
+        use crate::limits::{self, check};
+        check("batch", self.batch, limits::MAX_BATCH_FRAMES)?;
+        check("channels", self.channels, limits::MAX_CHANNELS)?;
+        check("global", self.global, limits::MAX_GLOBAL)?;
+        check("neighbours", self.neighbours, limits::MAX_NEIGHBOURS)?;
+        check("validation frames", self.validation_frames, limits::MAX_VALIDATION_FRAMES)?;
         if self.batch == 0 || self.channels == 0 || self.global == 0 || self.neighbours == 0 {
             return Err(NnError::Data("batch, channels, global and neighbours must be 1 or more".into()));
         }
@@ -489,8 +501,9 @@ pub fn train_solver(
     checkpoints: Option<&Checkpoints>,
     progress: &mut dyn FnMut(&SolverProgress),
 ) -> Result<(Solver, SolverReport), NnError> {
-    config.check()?;
+    config.validate()?;
     let (meta, takes) = prepare(data, config)?;
+    crate::limits::check_weights(meta.architecture.weights(&meta.graph))?;
     let (m, j) = (meta.markers.len(), meta.skeleton.len());
     // Frames: the tail of every take is validation.
     let mut train_frames: Vec<(usize, usize)> = Vec::new();
