@@ -1,29 +1,22 @@
 //! Checked option values: a number that cannot make sense is a usage error (exit status 2)
 //! with a message naming the option, never a silent fallback, a hang or an allocation abort.
 //!
-//! The ceilings are generous bounds a real job stays far below; they exist so that a typo
-//! (`--rate 1e9`, `--hidden 100000`) is refused at once instead of allocating terabytes.
+//! The ceilings are the libraries' own (`locap_nn::limits`, `locap_synth`, `locap_eval`), which
+//! check them again for library users: generous bounds a real job stays far below, so that a
+//! typo (`--rate 1e9`, `--hidden 100000`) is refused at once instead of allocating terabytes.
 
 use clap::builder::{RangedU64ValueParser, TypedValueParser};
 
-/// Fastest frame rate accepted, Hz: optical systems record at most a few thousand frames per
-/// second (Vicon Vantage 2,000 Hz, Qualisys Arqus at reduced resolution ~4,000 Hz).
-pub const MAX_RATE_HZ: f64 = 10_000.0;
-
-/// Largest width of a network layer (channels, hidden units, global features).
-pub const MAX_WIDTH: u64 = 4096;
-
-/// Largest training batch, in windows.
-pub const MAX_BATCH: u64 = 4096;
-
-/// Most takes or items a generator is asked for in one run.
-pub const MAX_ITEMS: u64 = 100_000;
-
-/// Most ghost points added per frame (a real raw frame has tens).
-pub const MAX_GHOSTS: u64 = 1000;
+/// Fastest frame rate accepted, Hz (the resampler's ceiling).
+pub const MAX_RATE_HZ: f64 = locap_synth::synthesize::MAX_RATE_HZ;
 
 /// Largest length, mm (a capture volume is tens of metres).
 pub const MAX_LENGTH_MM: f64 = 1e6;
+
+/// A bound for [`count`] from a library's `usize` ceiling.
+pub const fn max(ceiling: usize) -> u64 {
+    ceiling as u64
+}
 
 fn number(text: &str) -> Result<f64, String> {
     let value: f64 = text.trim().parse().map_err(|_| format!("{text:?} is not a number"))?;

@@ -6,6 +6,8 @@
 //! rate and points. `.ci/run` installs py-c3d into `.ci/pydeps`; elsewhere the test is skipped
 //! with a message (but fails under CI, so a broken install cannot pass silently).
 
+mod common;
+
 use locap_core::take::SampleQuality;
 use locap_core::{MarkerName, Take, Vec3};
 use locap_io::c3d::{self, AnalogSamples, C3dFile, Storage};
@@ -13,34 +15,12 @@ use serde_json::Value;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 
-fn pydeps() -> PathBuf {
-    std::env::var_os("LOCAP_PYDEPS")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("../../.ci/pydeps"))
-}
-
-/// True if py-c3d can be imported; false (after saying why) if not, outside CI.
-fn pyc3d_available() -> bool {
-    let ok = Command::new("python3")
-        .args(["-c", "import c3d, numpy"])
-        .env("PYTHONPATH", pydeps())
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .status()
-        .is_ok_and(|s| s.success());
-    if !ok {
-        assert!(std::env::var_os("CI").is_none(), "CI must install py-c3d into .ci/pydeps (see .ci/run)");
-        eprintln!("skipping: py-c3d not importable from {} (run .ci/run once to install it)", pydeps().display());
-    }
-    ok
-}
-
 /// Runs `pyc3d_write.py` with `args`, returning its standard output.
 fn script(args: &[&Path]) -> String {
     let output = Command::new("python3")
         .arg(Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/pyc3d_write.py"))
         .args(args)
-        .env("PYTHONPATH", pydeps())
+        .env("PYTHONPATH", common::pydeps())
         .output()
         .unwrap();
     assert!(
@@ -63,7 +43,7 @@ fn strings(v: &Value) -> Vec<String> {
 
 #[test]
 fn locap_reads_what_pyc3d_writes() {
-    if !pyc3d_available() {
+    if !common::python_has("c3d, numpy") {
         return;
     }
     let dir = tempfile::tempdir().unwrap();
@@ -140,7 +120,7 @@ fn locap_reads_what_pyc3d_writes() {
 
 #[test]
 fn pyc3d_reads_what_locap_writes() {
-    if !pyc3d_available() {
+    if !common::python_has("c3d, numpy") {
         return;
     }
     let markers: Vec<MarkerName> = ["RASI", "Bob:LASI", "STRN"].iter().map(|n| MarkerName::parse(n)).collect();

@@ -10,22 +10,6 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 
-fn pydeps() -> PathBuf {
-    std::env::var_os("LOCAP_PYDEPS")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("../../.ci/pydeps"))
-}
-
-fn ezc3d_available() -> bool {
-    Command::new("python3")
-        .args(["-c", "import ezc3d, numpy"])
-        .env("PYTHONPATH", pydeps())
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .status()
-        .is_ok_and(|s| s.success())
-}
-
 /// The Intel file ezc3d should read instead of a MIPS file it cannot read (same take).
 fn reference_for(path: &Path) -> Option<PathBuf> {
     let name = path.file_name()?.to_str()?;
@@ -78,9 +62,7 @@ fn rejected_as_read(path: &Path) -> bool {
 #[test]
 fn ezc3d_reads_what_locap_writes() {
     let Some(data) = common::shared_data() else { return };
-    if !ezc3d_available() {
-        assert!(std::env::var_os("CI").is_none(), "CI must install ezc3d into .ci/pydeps (see .ci/run)");
-        eprintln!("skipping: ezc3d not importable from {} (run .ci/run once to install it)", pydeps().display());
+    if !common::python_has("ezc3d, numpy") {
         return;
     }
     let out = tempfile::tempdir().unwrap();
@@ -124,7 +106,7 @@ fn ezc3d_reads_what_locap_writes() {
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/ezc3d_compare.py");
     let mut child = Command::new("python3")
         .arg(script)
-        .env("PYTHONPATH", pydeps())
+        .env("PYTHONPATH", common::pydeps())
         .stdin(Stdio::piped())
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
@@ -144,9 +126,7 @@ fn ezc3d_reads_what_locap_writes() {
 #[test]
 fn ezc3d_reads_the_same_parameters_after_convert() {
     let Some(data) = common::shared_data() else { return };
-    if !ezc3d_available() {
-        assert!(std::env::var_os("CI").is_none(), "CI must install ezc3d into .ci/pydeps (see .ci/run)");
-        eprintln!("skipping: ezc3d not importable from {}", pydeps().display());
+    if !common::python_has("ezc3d, numpy") {
         return;
     }
     let out = tempfile::tempdir().unwrap();
@@ -166,7 +146,7 @@ fn ezc3d_reads_the_same_parameters_after_convert() {
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/ezc3d_parameters.py");
     let mut child = Command::new("python3")
         .arg(script)
-        .env("PYTHONPATH", pydeps())
+        .env("PYTHONPATH", common::pydeps())
         .stdin(Stdio::piped())
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())

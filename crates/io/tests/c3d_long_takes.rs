@@ -13,34 +13,14 @@
 //!
 //! Without ezc3d the ezc3d halves are skipped with a message, but fail under CI.
 
+mod common;
+
 use locap_core::range_list;
 use locap_core::{MarkerName, Take, Vec3};
 use locap_io::c3d::{self, C3dFile};
 use serde_json::Value;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
-
-fn pydeps() -> PathBuf {
-    std::env::var_os("LOCAP_PYDEPS")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("../../.ci/pydeps"))
-}
-
-/// True if ezc3d can be imported; false (after saying why) if not, outside CI.
-fn ezc3d_available() -> bool {
-    let ok = Command::new("python3")
-        .args(["-c", "import ezc3d, numpy"])
-        .env("PYTHONPATH", pydeps())
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .status()
-        .is_ok_and(|s| s.success());
-    if !ok {
-        assert!(std::env::var_os("CI").is_none(), "CI must install ezc3d into .ci/pydeps (see .ci/run)");
-        eprintln!("skipping the ezc3d check: ezc3d not importable from {}", pydeps().display());
-    }
-    ok
-}
 
 /// What ezc3d reads from `path` (see `ezc3d_read_back.py`).
 fn ezc3d_read(path: &Path, frame_step: usize, parameters: &[&str]) -> Value {
@@ -49,7 +29,7 @@ fn ezc3d_read(path: &Path, frame_step: usize, parameters: &[&str]) -> Value {
         .arg(path)
         .arg(frame_step.to_string())
         .args(parameters)
-        .env("PYTHONPATH", pydeps())
+        .env("PYTHONPATH", common::pydeps())
         .output()
         .unwrap();
     assert!(
@@ -152,7 +132,7 @@ fn a_500000_frame_take_converts_and_reads_back_equal_in_locap_and_ezc3d() {
         assert_eq!(p.get("POINT", "FRAMES").unwrap().floats(), [-1.0], "65535 as int16, as ezc3d writes it");
         assert_eq!((back.header.first_frame, back.header.last_frame), (1, 65535));
     }
-    if !ezc3d_available() {
+    if !common::python_has("ezc3d, numpy") {
         return;
     }
     let read = ezc3d_read(&second, 4999, &[]);
@@ -210,7 +190,7 @@ fn twenty_thousand_filled_ranges_fit_and_read_back_in_locap_and_ezc3d() {
     assert_eq!(back.frames, frames);
     let strings = back.parameters.continued_strings("LOCAP", "FILLED");
     assert_eq!(range_list::decode(&strings).unwrap(), lines);
-    if !ezc3d_available() {
+    if !common::python_has("ezc3d, numpy") {
         return;
     }
     let read = ezc3d_read(&path, 9973, &["LOCAP:FILLED"]);
@@ -245,7 +225,7 @@ fn a_parameter_section_past_255_blocks_is_written_and_read_whole() {
     let back = c3d::read_path(&path).unwrap();
     assert_eq!(back.parameters.continued_strings("LOCAP", "FILLED"), lines);
     assert_eq!(back.to_take().unwrap().validity(), take.validity());
-    if !ezc3d_available() {
+    if !common::python_has("ezc3d, numpy") {
         return;
     }
     let read = ezc3d_read(&path, 97, &["LOCAP:FILLED"]);

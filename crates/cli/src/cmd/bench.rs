@@ -97,15 +97,15 @@ pub enum Drop {
     None,
 }
 
-/// Parses a ghost count: a number up to [`crate::values::MAX_GHOSTS`], or `M` for as many as
+/// Parses a ghost count: a number up to [`locap_eval::unlabel::MAX_GHOSTS_PER_FRAME`], or `M` for as many as
 /// markers.
 pub fn parse_ghosts(text: &str) -> Result<GhostCount, String> {
     match text.trim() {
         "M" | "m" | "markers" => Ok(GhostCount::PerMarker),
         n => {
             let count: usize = n.parse().map_err(|_| format!("ghost count {n:?} is not a number or M"))?;
-            if count as u64 > crate::values::MAX_GHOSTS {
-                return Err(format!("{count} ghosts per frame: at most {}", crate::values::MAX_GHOSTS));
+            if count > locap_eval::unlabel::MAX_GHOSTS_PER_FRAME {
+                return Err(format!("{count} ghosts per frame: at most {}", locap_eval::unlabel::MAX_GHOSTS_PER_FRAME));
             }
             Ok(GhostCount::Fixed(count))
         }
@@ -140,7 +140,7 @@ pub struct FillArgs {
     #[arg(long, default_value_t = 1)]
     seed: u64,
     /// Neighbours used by EDM.
-    #[arg(value_parser = crate::values::count(1, 64), long, default_value_t = 6)]
+    #[arg(value_parser = crate::values::count(1, crate::values::max(locap_nn::limits::MAX_NEIGHBOURS)), long, default_value_t = 6)]
     neighbours: usize,
     /// Learned refiners (`locap train fill`) to score on the same gaps: a model trained on EDM's
     /// fill is reported as `neural`, one trained on the linear fill as `neural-no-edm` (the

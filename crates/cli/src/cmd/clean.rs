@@ -42,7 +42,7 @@ pub struct Args {
     #[arg(long, value_name = "MODEL", num_args = 1.., help_heading = "Filling")]
     model: Vec<PathBuf>,
     /// Neighbours used by EDM (the paper's K).
-    #[arg(value_parser = crate::values::count(1, 64), long, default_value_t = 6, value_name = "K", help_heading = "Filling")]
+    #[arg(value_parser = crate::values::count(1, crate::values::max(locap_nn::limits::MAX_NEIGHBOURS)), long, default_value_t = 6, value_name = "K", help_heading = "Filling")]
     neighbours: usize,
     /// How neighbours are ranked.
     #[arg(long, value_enum, default_value_t = Ranking::Variance, help_heading = "Filling")]

@@ -23,7 +23,7 @@ pub struct Args {
     #[arg(required = true, value_name = "TAKE", help_heading = "Input")]
     takes: Vec<PathBuf>,
     /// Procedural finger takes to make per hand (on the captured wrist motion).
-    #[arg(value_parser = crate::values::count(0, crate::values::MAX_ITEMS), long, default_value_t = 0, value_name = "N", help_heading = "Synthesis")]
+    #[arg(value_parser = crate::values::count(0, crate::values::max(locap_synth::hand::MAX_PROCEDURAL_TAKES)), long, default_value_t = 0, value_name = "N", help_heading = "Synthesis")]
     procedural: usize,
     /// Seed of the procedural motion.
     #[arg(long, default_value_t = 1, help_heading = "Synthesis")]

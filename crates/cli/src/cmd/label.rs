@@ -154,7 +154,7 @@ fn label_one(
 ) -> Result<String> {
     let mut file = inputs::read_c3d(input)?;
     let raw = file.to_take().map_err(|e| e.in_file(input))?;
-    let frames = PointFrames::from_take(&raw);
+    let frames = PointFrames::try_from_take(&raw).map_err(|e| anyhow::anyhow!("{}: {e}", input.display()))?;
     let config = LabelConfig::with_method(args.method.into());
     let fit = FitConfig { accept_mm: args.fit_distance, ..FitConfig::default() };
     // ASF and BVH skeletons are Y-up; a Z-up take sees them turned.

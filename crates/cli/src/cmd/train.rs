@@ -55,7 +55,7 @@ pub struct FillArgs {
     #[arg(value_parser = crate::values::count(1, 1 << 30), long, value_name = "N", help_heading = "Training")]
     steps: Option<usize>,
     /// Windows per step.
-    #[arg(value_parser = crate::values::count(1, crate::values::MAX_BATCH), long, default_value_t = TrainConfig::default().batch, value_name = "N", help_heading = "Training")]
+    #[arg(value_parser = crate::values::count(1, crate::values::max(locap_nn::limits::MAX_BATCH_WINDOWS)), long, default_value_t = TrainConfig::default().batch, value_name = "N", help_heading = "Training")]
     batch: usize,
     /// Peak learning rate (Adam; linear warm-up, cosine decay to a tenth).
     #[arg(value_parser = crate::values::positive, long, default_value_t = TrainConfig::default().learning_rate, value_name = "LR", help_heading = "Training")]
@@ -90,13 +90,13 @@ pub struct FillArgs {
     #[arg(value_parser = crate::values::count(0, 1 << 20), long, value_name = "FRAMES", help_heading = "Network")]
     inference_taper: Option<usize>,
     /// Frames per window.
-    #[arg(value_parser = crate::values::count(2, 1 << 16), long, default_value_t = TrainConfig::default().window, value_name = "FRAMES", help_heading = "Network")]
+    #[arg(value_parser = crate::values::count(2, crate::values::max(locap_nn::limits::MAX_WINDOW)), long, default_value_t = TrainConfig::default().window, value_name = "FRAMES", help_heading = "Network")]
     window: usize,
     /// Graph-convolution features per marker.
-    #[arg(value_parser = crate::values::count(1, crate::values::MAX_WIDTH), long, default_value_t = TrainConfig::default().channels, value_name = "N", help_heading = "Network")]
+    #[arg(value_parser = crate::values::count(1, crate::values::max(locap_nn::limits::MAX_CHANNELS)), long, default_value_t = TrainConfig::default().channels, value_name = "N", help_heading = "Network")]
     channels: usize,
     /// LSTM hidden size per direction.
-    #[arg(value_parser = crate::values::count(1, crate::values::MAX_WIDTH), long, default_value_t = TrainConfig::default().hidden, value_name = "N", help_heading = "Network")]
+    #[arg(value_parser = crate::values::count(1, crate::values::max(locap_nn::limits::MAX_HIDDEN)), long, default_value_t = TrainConfig::default().hidden, value_name = "N", help_heading = "Network")]
     hidden: usize,
     /// The model file to write.
     #[arg(long, default_value = "refiner.locapnn", value_name = "MODEL", help_heading = "Output")]

@@ -69,16 +69,16 @@ pub struct SolveArgs {
     #[arg(value_parser = crate::values::positive_length_mm, long, default_value_t = SolverTrainConfig::default().link_threshold_mm, value_name = "MM", help_heading = "Network")]
     link_mm: f64,
     /// Features per marker and joint node.
-    #[arg(value_parser = crate::values::count(1, crate::values::MAX_WIDTH), long, default_value_t = SolverTrainConfig::default().channels, value_name = "N", help_heading = "Network")]
+    #[arg(value_parser = crate::values::count(1, crate::values::max(locap_nn::limits::MAX_CHANNELS)), long, default_value_t = SolverTrainConfig::default().channels, value_name = "N", help_heading = "Network")]
     channels: usize,
     /// Features of the global node (the MLP is 4 times as wide).
-    #[arg(value_parser = crate::values::count(1, crate::values::MAX_WIDTH), long, default_value_t = SolverTrainConfig::default().global, value_name = "N", help_heading = "Network")]
+    #[arg(value_parser = crate::values::count(1, crate::values::max(locap_nn::limits::MAX_GLOBAL)), long, default_value_t = SolverTrainConfig::default().global, value_name = "N", help_heading = "Network")]
     global: usize,
     /// Training steps.
     #[arg(value_parser = crate::values::count(1, 1 << 30), long, default_value_t = SolverTrainConfig::default().steps, value_name = "N", help_heading = "Training")]
     steps: usize,
     /// Frames per step.
-    #[arg(value_parser = crate::values::count(1, crate::values::MAX_BATCH), long, default_value_t = SolverTrainConfig::default().batch, value_name = "N", help_heading = "Training")]
+    #[arg(value_parser = crate::values::count(1, crate::values::max(locap_nn::limits::MAX_BATCH_FRAMES)), long, default_value_t = SolverTrainConfig::default().batch, value_name = "N", help_heading = "Training")]
     batch: usize,
     /// Peak learning rate (Adam; linear warm-up, cosine decay to a tenth).
     #[arg(value_parser = crate::values::positive, long, default_value_t = SolverTrainConfig::default().learning_rate, value_name = "LR", help_heading = "Training")]
