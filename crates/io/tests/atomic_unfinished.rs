@@ -2,7 +2,6 @@
 //! alone in its own test binary: beside other tests it would remove their temporaries too.
 
 use locap_io::atomic::{remove_unfinished, write_atomically};
-use std::io::Write;
 
 #[test]
 fn unfinished_temporaries_are_removed_on_request() {

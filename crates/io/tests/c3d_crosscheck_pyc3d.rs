@@ -12,8 +12,8 @@ use locap_core::take::SampleQuality;
 use locap_core::{MarkerName, Take, Vec3};
 use locap_io::c3d::{self, AnalogSamples, C3dFile, Storage};
 use serde_json::Value;
-use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
+use std::path::Path;
+use std::process::Command;
 
 /// Runs `pyc3d_write.py` with `args`, returning its standard output.
 fn script(args: &[&Path]) -> String {

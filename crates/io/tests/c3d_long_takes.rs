@@ -19,8 +19,8 @@ use locap_core::range_list;
 use locap_core::{MarkerName, Take, Vec3};
 use locap_io::c3d::{self, C3dFile};
 use serde_json::Value;
-use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
+use std::path::Path;
+use std::process::Command;
 
 /// What ezc3d reads from `path` (see `ezc3d_read_back.py`).
 fn ezc3d_read(path: &Path, frame_step: usize, parameters: &[&str]) -> Value {
