@@ -10,6 +10,24 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 
+/// Runs `tests/SCRIPT` with the cases as JSON on its standard input; whether it succeeded, and
+/// its report (also printed).
+fn run_script(script: &str, cases: &[serde_json::Value]) -> (bool, String) {
+    let mut child = Command::new("python3")
+        .arg(Path::new(env!("CARGO_MANIFEST_DIR")).join("tests").join(script))
+        .env("PYTHONPATH", common::pydeps())
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    child.stdin.take().unwrap().write_all(serde_json::to_string(cases).unwrap().as_bytes()).unwrap();
+    let output = child.wait_with_output().unwrap();
+    let report = String::from_utf8_lossy(&output.stdout).into_owned();
+    eprintln!("{report}{}", String::from_utf8_lossy(&output.stderr));
+    (output.status.success(), format!("{report}({})", output.status))
+}
+
 /// The Intel file ezc3d should read instead of a MIPS file it cannot read (same take).
 fn reference_for(path: &Path) -> Option<PathBuf> {
     let name = path.file_name()?.to_str()?;
@@ -103,20 +121,8 @@ fn ezc3d_reads_what_locap_writes() {
         cases.push(case);
     }
     assert!(cases.len() > 100, "expected the shared C3D files, found {}", cases.len());
-    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/ezc3d_compare.py");
-    let mut child = Command::new("python3")
-        .arg(script)
-        .env("PYTHONPATH", common::pydeps())
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    child.stdin.take().unwrap().write_all(serde_json::to_string(&cases).unwrap().as_bytes()).unwrap();
-    let output = child.wait_with_output().unwrap();
-    let report = String::from_utf8_lossy(&output.stdout);
-    eprintln!("{report}{}", String::from_utf8_lossy(&output.stderr));
-    assert!(output.status.success(), "ezc3d disagrees with locap's output ({}):\n{report}", output.status);
+    let (ok, report) = run_script("ezc3d_compare.py", &cases);
+    assert!(ok, "ezc3d disagrees with locap's output:\n{report}");
 }
 
 /// `locap convert a.c3d b.c3d` as ezc3d sees it: every parameter and the header events read
@@ -143,18 +149,6 @@ fn ezc3d_reads_the_same_parameters_after_convert() {
         cases.push(serde_json::json!({"original": path, "written": written}));
     }
     assert!(cases.len() > 100, "expected the shared C3D files, found {}", cases.len());
-    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/ezc3d_parameters.py");
-    let mut child = Command::new("python3")
-        .arg(script)
-        .env("PYTHONPATH", common::pydeps())
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    child.stdin.take().unwrap().write_all(serde_json::to_string(&cases).unwrap().as_bytes()).unwrap();
-    let output = child.wait_with_output().unwrap();
-    let report = String::from_utf8_lossy(&output.stdout);
-    eprintln!("{report}{}", String::from_utf8_lossy(&output.stderr));
-    assert!(output.status.success(), "ezc3d reads other parameters after convert ({}):\n{report}", output.status);
+    let (ok, report) = run_script("ezc3d_parameters.py", &cases);
+    assert!(ok, "ezc3d reads other parameters after convert:\n{report}");
 }
