@@ -22,8 +22,14 @@ fn solve_writes_bvh_with_the_takes_frames_and_rate() {
     assert_eq!(motion.frame_count(), 343);
     assert!((motion.frame_rate_hz() - 120.0).abs() < 1e-6);
     assert_eq!(motion.skeleton.index_of("ltibia").map(|i| motion.skeleton.joints()[i].parent), Some(Some(2)));
-    let cleaned = locap_io::c3d::read_path(&clean).unwrap().to_take().unwrap();
+    let cleaned_file = locap_io::c3d::read_path(&clean).unwrap();
+    let cleaned = cleaned_file.to_take().unwrap();
     assert_eq!((cleaned.frame_count(), cleaned.missing_count()), (343, 0));
+    // The fill (here the outlier windows the cleaning removed and refilled) is recorded as
+    // `locap clean` records it: `LABEL first-last` per filled run.
+    let filled = locap_core::range_list::decode(&cleaned_file.parameters.continued_strings("LOCAP", "FILLED")).unwrap();
+    assert!(!filled.is_empty() && filled.iter().all(|r| r.split_whitespace().count() == 2), "{filled:?}");
+    assert!(cleaned_file.parameters.get("LOCAP", "METHOD").is_some());
 
     let pydeps = repo().join(".ci/pydeps");
     // The cleaned markers keep the input file's parameter groups and analog data (ezc3d, the

@@ -264,14 +264,14 @@ fn clean_one(input: &Path, output: &Path, args: &Args, models: &Models) -> Resul
 /// Stores a range list as `LOCAP:<name>` in the compact form of `locap_core::range_list`:
 /// about three characters a range, so tens of thousands of ranges fit the parameter section
 /// (one string per line did not past ~6,000).
-fn set_ranges(file: &mut c3d::C3dFile, name: &str, lines: &[String]) -> Result<()> {
+pub(crate) fn set_ranges(file: &mut c3d::C3dFile, name: &str, lines: &[String]) -> Result<()> {
     let strings = locap_core::range_list::encode(lines).with_context(|| format!("LOCAP:{name}"))?;
     file.parameters.set_continued_strings("LOCAP", name, &strings);
     Ok(())
 }
 
 /// `LABEL first-last` (C3D frame numbers) for every run of filled samples.
-fn ranges(take: &Take, filled: &[bool], labels: &[String]) -> Vec<String> {
+pub(crate) fn ranges(take: &Take, filled: &[bool], labels: &[String]) -> Vec<String> {
     let m = take.marker_count();
     let mut out = Vec::new();
     for (marker, label) in labels.iter().enumerate() {

@@ -128,13 +128,23 @@ pub fn run(args: Args) -> Result<ExitCode> {
         locap_io::bvh::write_bvh_path(&motion, LengthUnit::Centimetre, &targets[i])?;
         if let Some(path) = marker_target {
             inputs::create_parent(path)?;
-            let file = match c3d_input {
+            let mut file = match c3d_input {
                 Some(mut file) => {
                     file.set_take(&cleaned.filled.take).map_err(|e| e.in_file(input))?;
                     file
                 }
                 None => locap_io::c3d::C3dFile::from_take(&cleaned.filled.take)?,
             };
+            // What this cleaning filled, as `locap clean` records it (the solver's cleaning
+            // does not report its outlier and swap lists, so only LOCAP:FILLED is written).
+            let labels: Vec<String> = take.markers().iter().map(|m| m.full()).collect();
+            let filled = crate::cmd::clean::ranges(&cleaned.filled.take, &cleaned.filled.filled, &labels);
+            crate::cmd::clean::set_ranges(&mut file, "FILLED", &filled)?;
+            let method = match &refiner {
+                Some(r) => format!("locap solve: Neural {} (EDM start)", r.meta.frame.name),
+                None => "locap solve: Edm K=6".to_string(),
+            };
+            file.parameters.set_strings("LOCAP", "METHOD", &[method]);
             locap_io::c3d::write_path(&file, path)?;
         }
         Ok(Solved {
