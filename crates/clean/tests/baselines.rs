@@ -4,15 +4,10 @@
 
 use locap_clean::{FillConfig, FillMethod, fill_gaps};
 use locap_core::{MarkerName, Take, Vec3};
-use std::path::PathBuf;
 use std::time::Instant;
 
 fn real_take() -> Option<Take> {
-    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data/cmu-c3d/85_02.c3d");
-    if !path.exists() {
-        eprintln!("skipping: {} not found", path.display());
-        return None;
-    }
+    let path = locap_testkit::shared_file("cmu-c3d/85_02.c3d")?;
     Some(locap_io::c3d::read_path(&path).expect("85_02.c3d reads").to_take().expect("85_02.c3d converts"))
 }
 

@@ -9,15 +9,9 @@ use locap_clean::outliers::{self, OutlierConfig};
 use locap_clean::swaps::{self, SwapConfig};
 use locap_clean::{FillConfig, Filled, fill_gaps, refill_outliers};
 use locap_core::Take;
-use std::path::Path;
 
 fn read(rel: &str) -> Option<Take> {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data").join(rel);
-    if !path.exists() {
-        assert!(std::env::var_os("CI").is_none(), "{} is missing (CI needs ../shared/data)", path.display());
-        eprintln!("skipping: {} not found (tests on real captures need ../shared/data)", path.display());
-        return None;
-    }
+    let path = locap_testkit::shared_file(rel)?;
     Some(locap_io::c3d::read_path(&path).unwrap().to_take().unwrap())
 }
 

@@ -4,14 +4,9 @@
 use locap_clean::outliers::{self, OutlierConfig};
 use locap_clean::{FillConfig, fill_gaps, refill_outliers};
 use locap_core::{Take, Vec3};
-use std::path::Path;
 
 fn read(rel: &str) -> Option<Take> {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data").join(rel);
-    if !path.exists() {
-        eprintln!("skipping: ../shared/data not found (tests on real captures need it)");
-        return None;
-    }
+    let path = locap_testkit::shared_file(rel)?;
     Some(locap_io::c3d::read_path(&path).unwrap().to_take().unwrap())
 }
 

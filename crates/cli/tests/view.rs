@@ -22,15 +22,7 @@ fn repo() -> PathBuf {
 }
 
 fn shared_data() -> Option<PathBuf> {
-    let dir = repo().join("../shared/data");
-    if dir.is_dir() {
-        Some(dir)
-    } else if std::env::var_os("CI").is_some() {
-        panic!("../shared/data not found, and CI needs it");
-    } else {
-        eprintln!("skipping: ../shared/data not found (tests on real captures need it)");
-        None
-    }
+    locap_testkit::shared_data()
 }
 
 /// The Chromium binary: `$LOCAP_CHROMIUM`, else `chromium` / `chromium-browser` on PATH.

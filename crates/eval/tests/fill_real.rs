@@ -5,15 +5,10 @@ use locap_clean::FillMethod;
 use locap_clean::neighbours::Selection;
 use locap_eval::fill_bench::{self, Variant};
 use locap_eval::gap_model::GapModel;
-use std::path::Path;
 
 #[test]
 fn edm_beats_interpolation_on_long_real_gaps() {
-    let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data");
-    if !data.is_dir() {
-        eprintln!("skipping: ../shared/data not found (tests on real captures need it)");
-        return;
-    }
+    let Some(data) = locap_testkit::shared_data() else { return };
     let read = |rel: &str| locap_io::c3d::read_path(&data.join(rel)).unwrap().to_take().unwrap();
     let takes =
         vec![("85_02".to_string(), read("cmu-c3d/85_02.c3d")), ("135_02".to_string(), read("cmu-c3d/135_02.c3d"))];

@@ -6,14 +6,7 @@ use locap_label::{FitConfig, LabelConfig, Start, Template, label_frames};
 use std::path::Path;
 
 fn data() -> Option<std::path::PathBuf> {
-    let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data");
-    if data.is_dir() {
-        Some(data)
-    } else {
-        assert!(std::env::var_os("CI").is_none(), "../shared/data must exist in CI");
-        eprintln!("skipping: ../shared/data not found (tests on real captures need it)");
-        None
-    }
+    locap_testkit::shared_data()
 }
 
 /// Per marker: (label, wrong, missed) over the whole take.

@@ -18,13 +18,5 @@ pub fn repo() -> PathBuf {
 /// `../shared/data`, or `None` (with a message saying the tests that need it are skipped)
 /// when it is absent; with the environment variable `CI` set, missing data is a failure.
 pub fn shared_data() -> Option<PathBuf> {
-    let dir = repo().join("../shared/data");
-    if dir.is_dir() {
-        Some(dir)
-    } else if std::env::var_os("CI").is_some() {
-        panic!("../shared/data not found, and CI is set: tests on real captures must run");
-    } else {
-        eprintln!("skipping: ../shared/data not found (tests on real captures need it)");
-        None
-    }
+    locap_testkit::shared_data()
 }

@@ -7,15 +7,7 @@ use std::path::{Path, PathBuf};
 /// `../shared/data` seen from the repository root, or `None` (with a message saying the tests
 /// that need it are skipped) when it is absent, as on a user's fresh clone.
 pub fn shared_data() -> Option<PathBuf> {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data");
-    if dir.is_dir() {
-        Some(dir)
-    } else {
-        // Under CI a missing data folder is a broken setup, not a reason to pass.
-        assert!(std::env::var_os("CI").is_none(), "CI must provide ../shared/data ({})", dir.display());
-        eprintln!("skipping: ../shared/data not found (tests on real captures need it)");
-        None
-    }
+    locap_testkit::shared_data()
 }
 
 /// Every file under `dir` whose extension is `ext` (case-insensitive), sorted.
