@@ -41,12 +41,14 @@
 
 pub mod baseline;
 pub mod edm;
+pub mod filler;
 pub mod local_frame;
 pub mod neighbours;
 pub mod outliers;
 pub mod procrustes;
 pub mod swaps;
 
+pub use filler::{FillError, Filler};
 use locap_core::Take;
 use serde::{Deserialize, Serialize};
 

@@ -1,0 +1,101 @@
+//! The [`Filler`] trait: anything that fills a take's gaps, so the clean stage, the solver's
+//! cleaning and the fill benchmark take one type whether the fill is a classical method of
+//! this crate ([`FillConfig`]) or a learned refiner from the `nn` crate (LocalMoCap section
+//! 3.1: EDM first, then the biLSTM's correction).
+
+use crate::{FillConfig, Filled};
+use locap_core::Take;
+
+/// A gap filler.
+///
+/// Implementations fill every gap they can of every labeled marker and report which samples
+/// they computed ([`Filled::filled`]); samples they cannot reach stay missing. A filler never
+/// changes a captured sample.
+pub trait Filler {
+    /// What filled, as recorded in `LOCAP:METHOD` and benchmark tables (e.g. `Edm K=6`).
+    fn describe(&self) -> String;
+
+    /// Fills `take`.
+    ///
+    /// # Errors
+    /// The filler cannot run on this take (e.g. a learned model trained on other markers).
+    fn fill(&self, take: &Take) -> Result<Filled, FillError>;
+}
+
+/// Why a [`Filler`] could not fill a take.
+#[derive(Debug, thiserror::Error)]
+#[error("{filler}: {source}")]
+pub struct FillError {
+    /// The filler's [`Filler::describe`].
+    pub filler: String,
+    /// What went wrong.
+    #[source]
+    pub source: Box<dyn std::error::Error + Send + Sync>,
+}
+
+impl FillError {
+    /// Wraps `source` as a failure of `filler`.
+    pub fn new(filler: &dyn Filler, source: impl Into<Box<dyn std::error::Error + Send + Sync>>) -> FillError {
+        FillError { filler: filler.describe(), source: source.into() }
+    }
+}
+
+impl Filler for FillConfig {
+    fn describe(&self) -> String {
+        match self.method {
+            crate::FillMethod::Edm => format!("Edm K={}", self.neighbours),
+            method => format!("{method:?}"),
+        }
+    }
+
+    fn fill(&self, take: &Take) -> Result<Filled, FillError> {
+        Ok(crate::fill_gaps(take, self))
+    }
+}
+
+impl<F: Filler + ?Sized> Filler for &F {
+    fn describe(&self) -> String {
+        (**self).describe()
+    }
+
+    fn fill(&self, take: &Take) -> Result<Filled, FillError> {
+        (**self).fill(take)
+    }
+}
+
+impl<F: Filler + ?Sized> Filler for Box<F> {
+    fn describe(&self) -> String {
+        (**self).describe()
+    }
+
+    fn fill(&self, take: &Take) -> Result<Filled, FillError> {
+        (**self).fill(take)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::FillMethod;
+    use locap_core::{MarkerName, Vec3};
+
+    #[test]
+    fn a_fill_config_fills_like_fill_gaps_and_names_itself() {
+        let names = vec![MarkerName::parse("A"), MarkerName::parse("B")];
+        let samples: Vec<Option<Vec3>> = (0..10)
+            .flat_map(|f| {
+                let a = (f != 4).then(|| Vec3::new(f as f64, 0.0, 0.0));
+                [a, Some(Vec3::new(f as f64, 100.0, 0.0))]
+            })
+            .collect();
+        let take = Take::from_samples(names, &samples, 100.0).unwrap();
+        let config = FillConfig { method: FillMethod::Linear, ..FillConfig::default() };
+        let filled = Filler::fill(&config, &take).unwrap();
+        assert_eq!(filled, crate::fill_gaps(&take, &config));
+        assert_eq!(filled.filled_count(), 1);
+        assert_eq!(config.describe(), "Linear");
+        assert_eq!(FillConfig::default().describe(), "Edm K=6");
+        let boxed: Box<dyn Filler> = Box::new(config);
+        assert_eq!(boxed.describe(), "Linear");
+    }
+}
