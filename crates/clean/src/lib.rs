@@ -11,6 +11,11 @@
 //! ([`neighbours`]). Markers on one body segment keep almost constant distances, so they
 //! predict each other well.
 //!
+//! # The stage in one call
+//! [`clean`] (or [`clean_with`] and any [`Filler`], such as a learned refiner) runs the whole
+//! stage on a take: swaps, outliers, fill, outlier refill, and returns a [`Cleaned`] take with
+//! a per-marker report and the [`locap_core::Provenance`] to store with it ([`stage`]).
+//!
 //! # Gap filling
 //! [`fill_gaps`] fills every gap of every marker with one [`FillMethod`]:
 //! - [`FillMethod::Edm`], the paper's method ([`edm`]): interpolate the squared-distance
@@ -46,11 +51,13 @@ pub mod local_frame;
 pub mod neighbours;
 pub mod outliers;
 pub mod procrustes;
+pub mod stage;
 pub mod swaps;
 
 pub use filler::{FillError, Filler};
 use locap_core::Take;
 use serde::{Deserialize, Serialize};
+pub use stage::{CleanConfig, Cleaned, MarkerReport, clean, clean_with};
 
 /// A gap-filling method.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]

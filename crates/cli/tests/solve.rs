@@ -29,7 +29,12 @@ fn solve_writes_bvh_with_the_takes_frames_and_rate() {
     // `locap clean` records it: `LABEL first-last` per filled run.
     let filled = locap_core::range_list::decode(&cleaned_file.parameters.continued_strings("LOCAP", "FILLED")).unwrap();
     assert!(!filled.is_empty() && filled.iter().all(|r| r.split_whitespace().count() == 2), "{filled:?}");
-    assert!(cleaned_file.parameters.get("LOCAP", "METHOD").is_some());
+    // The whole record, as `locap clean` writes it: the outlier windows behind those fills and
+    // the method.
+    let record = cleaned_file.provenance(&cleaned).unwrap();
+    assert!(!record.outliers.is_empty(), "{record:?}");
+    assert!(cleaned_file.parameters.get("LOCAP", "SWAPS").is_some());
+    assert!(record.method.as_deref().unwrap_or_default().starts_with("locap solve: "), "{record:?}");
 
     let pydeps = repo().join(".ci/pydeps");
     // The cleaned markers keep the input file's parameter groups and analog data (ezc3d, the

@@ -188,12 +188,7 @@ fn page_shows_what_clean_filled() {
 
     let file = locap_io::c3d::read_path(&cleaned).unwrap();
     let take = file.to_take().unwrap();
-    let states = locap_view::sample_states(
-        &take,
-        &file.parameters.continued_strings("LOCAP", "FILLED"),
-        &file.parameters.continued_strings("LOCAP", "OUTLIERS"),
-    )
-    .unwrap();
+    let states = locap_view::sample_states(&take, &file.provenance(&take).unwrap());
     let m = take.marker_count();
     let count = |f: usize, s: locap_view::SampleState| states[f * m..(f + 1) * m].iter().filter(|x| **x == s).count();
     let frame =

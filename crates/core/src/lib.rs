@@ -26,6 +26,7 @@
 
 pub mod gaps;
 pub mod marker;
+pub mod provenance;
 pub mod range_list;
 pub mod rotation;
 pub mod skeleton;
@@ -34,6 +35,7 @@ pub mod units;
 
 pub use gaps::GapStatistics;
 pub use marker::MarkerName;
+pub use provenance::Provenance;
 pub use rotation::EulerOrder;
 pub use skeleton::{GlobalPose, Joint, Motion, Skeleton, SkeletonError};
 pub use take::{Take, TakeError};

@@ -12,7 +12,8 @@
 //! * [`limits`]: the documented ceilings on network, batch and window sizes.
 //! * [`features`]: a take to network inputs (EDM fill, local frame, normalisation) and back.
 //! * [`refiner`]: the versioned model file and inference over overlapping windows.
-//! * [`shipped`]: the trained refiners built into locap.
+//! * [`refiners`]: refiners as fillers of the clean stage (`locap_clean::Filler`).
+//! * [`shipped`]: the trained refiners and solver built into locap.
 //! * [`solver`]: the motion solver of section 3.2 (heterogeneous graph network, baselines,
 //!   training, metrics).
 //! * [`train`]: shard data loading with on-the-fly Eq. 6 augmentation, Adam, learning-rate
@@ -22,12 +23,14 @@ pub mod features;
 pub mod limits;
 pub mod model;
 pub mod refiner;
+pub mod refiners;
 pub mod shipped;
 pub mod solver;
 pub mod train;
 
 pub use burn;
 pub use refiner::{ModelMeta, Refiner, refine_all, refine_all_of};
+pub use refiners::Refiners;
 pub use train::{TrainConfig, TrainReport};
 
 /// Errors of the refiner.
@@ -83,6 +86,9 @@ pub enum NnError {
         /// What failed.
         source: std::io::Error,
     },
+    /// The fill before solving failed (a refiner that does not fit the take).
+    #[error(transparent)]
+    Fill(#[from] locap_clean::FillError),
     /// Training data or settings that cannot be used.
     #[error("{0}")]
     Data(String),

@@ -1,13 +1,20 @@
-//! The trained refiners shipped inside locap, produced by `locap train fill` (the commands, data
-//! and training times are recorded in `models/README.md` beside the files).
+//! The trained models shipped inside locap, produced by `locap train fill` and `locap train
+//! solve` (the commands, data and training times are recorded in `models/README.md` beside the
+//! files).
 //!
-//! They are used when a command needs a refiner and none is given: each take is refined by
-//! those whose markers it carries (the body model on the CMU/HDM05 41-marker set, the hand
-//! models on the paper's 14 markers per hand, `LIWR` ... `LPNK6` and `RIWR` ... `RPNK6`).
+//! They are used when a command needs a model and none is given: each take is refined by the
+//! refiners whose markers it carries ([`refiners_for`]: the body model on the CMU/HDM05
+//! 41-marker set, the hand models on the paper's 14 markers per hand, `LIWR` ... `LPNK6` and
+//! `RIWR` ... `RPNK6`), and solved by [`solver`] (the CMU 41-marker set on the CMU ASF
+//! skeleton).
 
 use crate::NnError;
+use crate::features::marker_order;
 use crate::refiner::Refiner;
+use crate::refiners::Refiners;
+use crate::solver::Solver;
 use burn::prelude::Device;
+use locap_core::Take;
 
 /// A shipped model: its file name under `models/` and its bytes.
 #[derive(Debug, Clone, Copy)]
@@ -25,7 +32,30 @@ pub const REFINERS: &[Shipped] = &[
     Shipped { name: "refiner-hand-right.locapnn", bytes: include_bytes!("../../../models/refiner-hand-right.locapnn") },
 ];
 
-/// The shipped refiners, loaded on `device`.
+/// The shipped solver.
+pub const SOLVER: Shipped =
+    Shipped { name: "solver-cmu41.locapsv", bytes: include_bytes!("../../../models/solver-cmu41.locapsv") };
+
+/// The shipped solver, loaded on `device`.
+///
+/// # Errors
+/// The shipped file does not load (a build from a damaged checkout).
+pub fn solver(device: &Device) -> Result<Solver, NnError> {
+    Solver::from_bytes(SOLVER.bytes, device).map_err(|e| NnError::BadModel(format!("shipped {}: {e}", SOLVER.name)))
+}
+
+/// The shipped refiners whose markers `take` carries, loaded on `device`, named `shipped
+/// <local frame>` for the record; empty when none fits (the caller falls back to EDM, or
+/// refuses).
+///
+/// # Errors
+/// A shipped file does not load (a build from a damaged checkout).
+pub fn refiners_for(take: &Take, device: &Device) -> Result<Refiners, NnError> {
+    let fitting = refiners(device)?.into_iter().filter(|r| marker_order(take, &r.meta.markers).is_ok());
+    Ok(Refiners::new(fitting.map(|r| (format!("shipped {}", r.meta.frame.name), r)).collect()))
+}
+
+/// Every shipped refiner, loaded on `device`.
 ///
 /// # Errors
 /// A shipped file does not load (a build from a damaged checkout).

@@ -338,7 +338,7 @@ fn a_tiny_solver_learns_and_solves_takes() {
     names[3].label = "XYZ".into();
     let mut other = take.clone();
     other.set_markers(names).unwrap();
-    let e = solver.solve(&other, None).unwrap_err().to_string();
+    let e = solver.solve(&other, &locap_clean::FillConfig::default()).unwrap_err().to_string();
     assert!(e.contains("another marker set") && e.contains("RBWT"), "{e}");
     let e = Solver::from_bytes(b"LOCAPNN\0 a refiner, not a solver", &device).unwrap_err().to_string();
     assert!(e.contains("LOCAPSV"), "{e}");

@@ -36,7 +36,7 @@ fn take() -> Take {
 
 fn bench(c: &mut Criterion) {
     let take = take();
-    let states = locap_view::sample_states(&take, &[], &[]).expect("states");
+    let states = locap_view::sample_states(&take, &locap_core::Provenance::default());
     let mut group = c.benchmark_group("page_41x72000");
     group.sample_size(10);
     group.bench_function("render", |b| {

@@ -34,16 +34,6 @@ pub use states::{SampleState, sample_states};
 /// Errors from building a page or a chart.
 #[derive(Debug, thiserror::Error)]
 pub enum ViewError {
-    /// A line of a `LOCAP:` parameter could not be used.
-    #[error("{parameter}: `{line}`: {reason}")]
-    BadParameter {
-        /// The parameter (`LOCAP:FILLED`, `LOCAP:OUTLIERS`).
-        parameter: &'static str,
-        /// The offending line.
-        line: String,
-        /// What is wrong with it.
-        reason: String,
-    },
     /// A motion or take shown with the main take has another number of frames.
     #[error("{what} has {found} frames, but the take has {expected}; they must cover the same frames")]
     FrameCountMismatch {

@@ -406,7 +406,9 @@ mod tests {
     fn page_carries_the_take_and_decodes_back() {
         let t = take(20);
         let filled = vec!["RFHD 3-5".to_string()];
-        let states = sample_states(&t, &filled, &[]).unwrap();
+        let record =
+            locap_core::Provenance::from_parameters(&t, |n| if n == "FILLED" { filled.clone() } else { Vec::new() });
+        let states = sample_states(&t, &record.unwrap());
         let m = motion(20);
         let input = ViewInput {
             title: "a <take>".into(),
@@ -458,7 +460,7 @@ mod tests {
     #[test]
     fn mismatched_motion_and_compare_are_clear_errors() {
         let t = take(20);
-        let states = sample_states(&t, &[], &[]).unwrap();
+        let states = sample_states(&t, &locap_core::Provenance::default());
         let short = motion(19);
         let base =
             ViewInput { title: "t".into(), take: &t, states: &states, motion: None, compare: None, neighbour_edges: 0 };
@@ -475,7 +477,7 @@ mod tests {
     fn empty_takes_still_make_a_page() {
         for t in [Take::empty(vec![], 10, 100.0).unwrap(), Take::empty(vec![MarkerName::parse("A")], 0, 100.0).unwrap()]
         {
-            let states = sample_states(&t, &[], &[]).unwrap();
+            let states = sample_states(&t, &locap_core::Provenance::default());
             let input = ViewInput {
                 title: "e".into(),
                 take: &t,

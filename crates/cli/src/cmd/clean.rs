@@ -5,17 +5,18 @@
 //! detected and removed, every gap
 //! (occlusions and removed outliers alike) is filled with the chosen method, then the
 //! outlier windows are refilled with a cubic spline through the now-complete trajectory, as
-//! the paper does. Filled samples get residual 0 (the C3D convention for "not measured") and
-//! are listed, frame ranges per marker, in the C3D parameters `LOCAP:FILLED`,
-//! `LOCAP:OUTLIERS` and `LOCAP:SWAPS` (compact text, `locap_core::range_list`), so locap's
-//! viewer shows what locap changed.
+//! the paper does (the library stage `locap_clean::clean_with`; this command finds files, picks
+//! the filler and writes). Filled samples get residual 0 (the C3D convention for "not
+//! measured") and are listed, frame ranges per marker, in the C3D parameters `LOCAP:FILLED`,
+//! `LOCAP:OUTLIERS` and `LOCAP:SWAPS` (`locap_core::provenance`), so locap's viewer shows what
+//! locap changed.
 
 use crate::inputs;
 use anyhow::{Context, Result, bail};
 use clap::{Parser, ValueEnum};
-use locap_clean::outliers::{self, OutlierConfig};
-use locap_clean::swaps::{self, SwapConfig};
-use locap_clean::{FillConfig, FillMethod, neighbours::Selection};
+use locap_clean::outliers::OutlierConfig;
+use locap_clean::swaps::SwapConfig;
+use locap_clean::{CleanConfig, Cleaned, FillConfig, FillMethod, Filler, neighbours::Selection};
 use locap_core::Take;
 use locap_io::c3d;
 use std::path::{Path, PathBuf};
@@ -109,19 +110,6 @@ pub enum Switch {
     Off,
 }
 
-/// What cleaning did to one take.
-#[derive(Debug, Default)]
-struct Summary {
-    gaps: usize,
-    filled_samples: usize,
-    still_missing: usize,
-    outliers: usize,
-    outlier_samples: usize,
-    swaps: usize,
-    /// Per marker: (label, gaps, filled samples, still missing, outlier ranges).
-    markers: Vec<(String, usize, usize, usize, usize)>,
-}
-
 /// Runs `locap clean`.
 pub fn run(args: Args) -> Result<ExitCode> {
     let models = match args.method {
@@ -147,7 +135,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
         inputs::create_parent(&targets[i])?;
         clean_one(input, &targets[i], &args, &models)
     });
-    let text: String = done.iter().map(|(path, summary)| format_summary(path, summary)).collect();
+    let text: String = done.iter().map(|(path, cleaned)| format_summary(path, cleaned)).collect();
     crate::emit(&text)?;
     Ok(if failed > 0 { ExitCode::from(1) } else { ExitCode::SUCCESS })
 }
@@ -163,19 +151,22 @@ enum Models {
 }
 
 impl Models {
-    /// The refiners for `take` (loaded per job: a burn module is not shared between threads).
-    fn for_take(&self, take: &locap_core::Take) -> Result<Vec<locap_nn::Refiner>> {
+    /// The filler for `take` (refiners are loaded per job: a burn module is not shared between
+    /// threads); `fill` when not refining.
+    fn filler_for(&self, take: &Take, fill: FillConfig, paths: &[PathBuf]) -> Result<Box<dyn Filler>> {
         let device = Default::default();
         match self {
-            Models::None => Ok(Vec::new()),
+            Models::None => Ok(Box::new(fill)),
             Models::Given(files) => {
-                files.iter().map(|b| locap_nn::Refiner::from_bytes(b, &device).map_err(Into::into)).collect()
+                let mut named = Vec::new();
+                for (bytes, path) in files.iter().zip(paths) {
+                    let name = path.file_name().unwrap_or_default().to_string_lossy().into_owned();
+                    named.push((name, locap_nn::Refiner::from_bytes(bytes, &device)?));
+                }
+                Ok(Box::new(locap_nn::Refiners::new(named)))
             }
             Models::Shipped => {
-                let fitting: Vec<locap_nn::Refiner> = locap_nn::shipped::refiners(&device)?
-                    .into_iter()
-                    .filter(|r| locap_nn::features::marker_order(take, &r.meta.markers).is_ok())
-                    .collect();
+                let fitting = locap_nn::shipped::refiners_for(take, &device)?;
                 if fitting.is_empty() {
                     let names: Vec<&str> = locap_nn::shipped::REFINERS.iter().map(|s| s.name).collect();
                     bail!(
@@ -184,144 +175,67 @@ impl Models {
                         names.join(", ")
                     );
                 }
-                Ok(fitting)
+                Ok(Box::new(fitting))
             }
         }
     }
 }
 
-fn clean_one(input: &Path, output: &Path, args: &Args, models: &Models) -> Result<Summary> {
+impl Args {
+    /// The stage's settings from the flags.
+    fn config(&self) -> CleanConfig {
+        let on = self.outliers == Switch::On;
+        CleanConfig {
+            swaps: on.then(SwapConfig::default),
+            outliers: on.then(|| OutlierConfig {
+                body_threshold_m_s2: self.body_threshold,
+                hand_threshold_m_s2: self.hand_threshold,
+                ..OutlierConfig::default()
+            }),
+            fill: FillConfig {
+                method: self.method.into(),
+                neighbours: self.neighbours,
+                selection: match self.ranking {
+                    Ranking::Variance => Selection::Variance,
+                    Ranking::Nearest => Selection::MeanDistance,
+                },
+            },
+        }
+    }
+}
+
+fn clean_one(input: &Path, output: &Path, args: &Args, models: &Models) -> Result<Cleaned> {
     let mut file = inputs::read_c3d(input)?;
-    let mut raw = file.to_take().map_err(|e| e.in_file(input))?;
-    let swapped = if args.outliers == Switch::On { swaps::detect(&raw, &SwapConfig::default()) } else { Vec::new() };
-    swaps::unswap(&mut raw, &swapped);
-    let config = OutlierConfig {
-        body_threshold_m_s2: args.body_threshold,
-        hand_threshold_m_s2: args.hand_threshold,
-        ..OutlierConfig::default()
-    };
-    let found = if args.outliers == Switch::On { outliers::detect(&raw, &config) } else { Vec::new() };
-    let mut holed = raw.clone();
-    let removed = outliers::remove(&mut holed, &found);
-    let fill = FillConfig {
-        method: args.method.into(),
-        neighbours: args.neighbours,
-        selection: match args.ranking {
-            Ranking::Variance => Selection::Variance,
-            Ranking::Nearest => Selection::MeanDistance,
-        },
-    };
-    let refiners = models.for_take(&holed)?;
-    let mut filled = if refiners.is_empty() {
-        locap_clean::fill_gaps(&holed, &fill)
-    } else {
-        locap_nn::refine_all(&holed, &refiners)?
-    };
-    locap_clean::refill_outliers(&mut filled, &found);
-    let mut summary = summarize(&raw, &filled.take, &filled.filled, &removed, &found);
-    summary.swaps = swapped.len();
-    let labels: Vec<String> = raw.markers().iter().map(|m| m.full()).collect();
-    file.set_take(&filled.take).map_err(|e| e.in_file(input))?;
-    let filled_ranges = ranges(&filled.take, &filled.filled, &labels);
-    let outlier_ranges: Vec<String> = found
-        .iter()
-        .map(|o| {
-            format!(
-                "{} {}-{} {:?}",
-                labels[o.marker],
-                raw.first_frame as usize + o.frames.start,
-                raw.first_frame as usize + o.frames.end - 1,
-                o.kind
-            )
-        })
-        .collect();
-    set_ranges(&mut file, "FILLED", &filled_ranges)?;
-    set_ranges(&mut file, "OUTLIERS", &outlier_ranges)?;
-    let swap_ranges: Vec<String> = swapped
-        .iter()
-        .map(|s| {
-            let first = raw.first_frame as usize + s.frames.start;
-            format!("{} {} {}-{}", labels[s.a], labels[s.b], first, raw.first_frame as usize + s.frames.end - 1)
-        })
-        .collect();
-    set_ranges(&mut file, "SWAPS", &swap_ranges)?;
-    let method = if refiners.is_empty() {
-        format!("{:?} K={}", fill.method, fill.neighbours)
-    } else {
-        let names: Vec<String> = match models {
-            Models::Given(_) => {
-                args.model.iter().map(|p| p.file_name().unwrap_or_default().to_string_lossy().into_owned()).collect()
-            }
-            _ => refiners.iter().map(|r| format!("shipped {}", r.meta.frame.name)).collect(),
-        };
-        format!("Neural {} (EDM start)", names.join(" + "))
-    };
-    file.parameters.set_strings("LOCAP", "METHOD", &[method]);
+    let raw = file.to_take().map_err(|e| e.in_file(input))?;
+    let config = args.config();
+    let filler = models.filler_for(&raw, config.fill, &args.model)?;
+    let cleaned = locap_clean::clean_with(&raw, &config, filler.as_ref())?;
+    file.set_take(cleaned.take()).map_err(|e| e.in_file(input))?;
+    file.set_provenance(cleaned.take(), &cleaned.provenance()).with_context(|| format!("{}", output.display()))?;
     c3d::write_path(&file, output)?;
-    Ok(summary)
+    Ok(cleaned)
 }
 
-/// Stores a range list as `LOCAP:<name>` in the compact form of `locap_core::range_list`:
-/// about three characters a range, so tens of thousands of ranges fit the parameter section
-/// (one string per line did not past ~6,000).
-pub(crate) fn set_ranges(file: &mut c3d::C3dFile, name: &str, lines: &[String]) -> Result<()> {
-    let strings = locap_core::range_list::encode(lines).with_context(|| format!("LOCAP:{name}"))?;
-    file.parameters.set_continued_strings("LOCAP", name, &strings);
-    Ok(())
-}
-
-/// `LABEL first-last` (C3D frame numbers) for every run of filled samples.
-pub(crate) fn ranges(take: &Take, filled: &[bool], labels: &[String]) -> Vec<String> {
-    let m = take.marker_count();
-    let mut out = Vec::new();
-    for (marker, label) in labels.iter().enumerate() {
-        let mask = (0..take.frame_count()).map(|f| filled[f * m + marker]);
-        for gap in locap_core::gaps::gaps_of(mask.map(|x| !x)) {
-            let first = take.first_frame as usize + gap.start;
-            out.push(format!("{label} {first}-{}", first + gap.len - 1));
-        }
-    }
-    out
-}
-
-fn summarize(raw: &Take, result: &Take, filled: &[bool], removed: &[bool], found: &[outliers::Outlier]) -> Summary {
-    let m = raw.marker_count();
-    let mut s = Summary::default();
-    let stats = locap_core::GapStatistics::of_take(raw);
-    for (marker, name) in raw.markers().iter().enumerate() {
-        let filled_here = (0..raw.frame_count()).filter(|f| filled[f * m + marker] && !removed[f * m + marker]).count();
-        let missing = (0..raw.frame_count()).filter(|f| !result.is_valid(*f, marker)).count();
-        let outs = found.iter().filter(|o| o.marker == marker).count();
-        let gaps = stats.markers[marker].gap_count;
-        s.gaps += gaps;
-        s.filled_samples += filled_here;
-        s.still_missing += missing;
-        s.outliers += outs;
-        s.markers.push((name.full(), gaps, filled_here, missing, outs));
-    }
-    s.outlier_samples = removed.iter().filter(|r| **r).count();
-    s
-}
-
-fn format_summary(path: &Path, s: &Summary) -> String {
+fn format_summary(path: &Path, s: &Cleaned) -> String {
     use std::fmt::Write;
     let mut t = String::new();
     let _ = writeln!(
         t,
         "{}: {} gaps, {} samples filled, {} still missing; {} outliers ({} samples) removed and refilled; {} label swaps undone",
         path.display(),
-        s.gaps,
-        s.filled_samples,
-        s.still_missing,
-        s.outliers,
+        s.gap_count(),
+        s.filled_samples(),
+        s.still_missing(),
+        s.outliers.len(),
         s.outlier_samples,
-        s.swaps
+        s.swaps.len()
     );
-    for (name, gaps, filled, missing, outs) in &s.markers {
-        if *gaps > 0 || *outs > 0 || *missing > 0 {
+    for m in &s.markers {
+        if m.gaps > 0 || m.outliers > 0 || m.still_missing > 0 {
             let _ = writeln!(
                 t,
-                "  {name:<24} gaps {gaps:>4}  filled {filled:>6}  missing {missing:>6}  outliers {outs:>3}"
+                "  {:<24} gaps {:>4}  filled {:>6}  missing {:>6}  outliers {:>3}",
+                m.label, m.gaps, m.filled_samples, m.still_missing, m.outliers
             );
         }
     }

@@ -196,7 +196,12 @@ fn real_rows(args: &Args, solvers: &[(String, Solver)], refiner: Option<&Refiner
         let take = crate::inputs::read_take(take_path)?;
         let reference = crate::inputs::read_motion(reference_path, &options)?;
         for (name, solver) in solvers {
-            let (motion, _) = solver.solve(&take, refiner).with_context(|| format!("{}", take_path.display()))?;
+            let edm = locap_clean::FillConfig::default();
+            let filler: &dyn locap_clean::Filler = match refiner {
+                Some(r) => r,
+                None => &edm,
+            };
+            let (motion, _) = solver.solve(&take, filler).with_context(|| format!("{}", take_path.display()))?;
             let comparison = compare_motions(&motion, &reference, &solver.meta.rotating)
                 .with_context(|| format!("{} vs {}", take_path.display(), reference_path.display()))?;
             rows.push(RealRow {

@@ -5,21 +5,21 @@
 //! BVH at the take's own frame rate with exactly its frame count, in the skeleton's Y-up motion
 //! frame (the lab frame the model was trained for is undone), lengths in centimetres.
 //!
-//! Without `--model`, the solver shipped with locap is used (`models/solver-cmu41.locapsv`:
-//! the CMU 41-marker set on the CMU ASF skeleton, built into the binary).
+//! Without `--model`, the solver shipped with locap is used (`locap_nn::shipped::solver`,
+//! `models/solver-cmu41.locapsv`: the CMU 41-marker set on the CMU ASF skeleton, built into the
+//! binary). The cleaning is `locap_clean::clean_with` with its defaults, and `--markers-out`
+//! keeps the input file's parameters and analog data and records the cleaning in the `LOCAP`
+//! group, as `locap clean` does.
 
 use crate::inputs;
 use anyhow::{Context, Result};
 use clap::Parser;
+use locap_clean::{FillConfig, Filler};
 use locap_core::LengthUnit;
 use locap_nn::Refiner;
 use locap_nn::solver::Solver;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
-
-/// The default solver, built into the binary (see `models/README.md`).
-pub static DEFAULT_MODEL: &[u8] =
-    include_bytes!(concat!(env!("CARGO_MANIFEST_DIR"), "/../../models/solver-cmu41.locapsv"));
 
 /// Arguments of `locap solve`.
 #[derive(Parser, Debug)]
@@ -80,14 +80,15 @@ fn read_model(path: &Path) -> Result<Vec<u8>> {
 pub fn run(args: Args) -> Result<ExitCode> {
     let auxiliary = [args.model.as_ref(), args.refiner.as_ref()];
     inputs::protect(&auxiliary.iter().flatten().map(|p| p.as_path()).collect::<Vec<_>>())?;
-    let model = match &args.model {
-        Some(p) => read_model(p)?,
-        None => DEFAULT_MODEL.to_vec(),
-    };
+    let model = args.model.as_deref().map(read_model).transpose()?;
     let refiner = args.refiner.as_deref().map(read_model).transpose()?;
     // Check the models once up front, so a bad file is one clear error and not one per take.
     let device = Default::default();
-    let probe = Solver::from_bytes(&model, &device)
+    let load_solver = |device: &_| match &model {
+        Some(bytes) => Solver::from_bytes(bytes, device),
+        None => locap_nn::shipped::solver(device),
+    };
+    let probe = load_solver(&device)
         .with_context(|| args.model.as_ref().map_or("the built-in solver".into(), |p| p.display().to_string()))?;
     if let (Some(bytes), Some(path)) = (&refiner, &args.refiner) {
         Refiner::from_bytes(bytes, &device).with_context(|| format!("{}", path.display()))?;
@@ -113,16 +114,17 @@ pub fn run(args: Args) -> Result<ExitCode> {
         let t0 = std::time::Instant::now();
         // One solver per job: a burn module is not shared between threads.
         let device = Default::default();
-        let solver = Solver::from_bytes(&model, &device)?;
-        let refiner = match (&refiner, args.no_refiner) {
-            (Some(bytes), _) => Some(Refiner::from_bytes(bytes, &device)?),
-            (None, true) => None,
+        let solver = load_solver(&device)?;
+        let filler: Box<dyn Filler> = match (&refiner, args.no_refiner) {
+            (Some(bytes), _) => Box::new(Refiner::from_bytes(bytes, &device)?),
+            (None, true) => Box::new(FillConfig::default()),
             // The shipped refiners that fit this take (none: EDM alone).
-            (None, false) => locap_nn::shipped::refiners(&device)?
-                .into_iter()
-                .find(|r| locap_nn::features::marker_order(&take, &r.meta.markers).is_ok()),
+            (None, false) => match locap_nn::shipped::refiners_for(&take, &device)? {
+                fitting if fitting.is_empty() => Box::new(FillConfig::default()),
+                fitting => Box::new(fitting),
+            },
         };
-        let (motion, cleaned) = solver.solve(&take, refiner.as_ref())?;
+        let (motion, cleaned) = solver.solve(&take, filler.as_ref())?;
         let seconds = t0.elapsed().as_secs_f64();
         inputs::create_parent(&targets[i])?;
         locap_io::bvh::write_bvh_path(&motion, LengthUnit::Centimetre, &targets[i])?;
@@ -130,21 +132,15 @@ pub fn run(args: Args) -> Result<ExitCode> {
             inputs::create_parent(path)?;
             let mut file = match c3d_input {
                 Some(mut file) => {
-                    file.set_take(&cleaned.filled.take).map_err(|e| e.in_file(input))?;
+                    file.set_take(cleaned.take()).map_err(|e| e.in_file(input))?;
                     file
                 }
-                None => locap_io::c3d::C3dFile::from_take(&cleaned.filled.take)?,
+                None => locap_io::c3d::C3dFile::from_take(cleaned.take())?,
             };
-            // What this cleaning filled, as `locap clean` records it (the solver's cleaning
-            // does not report its outlier and swap lists, so only LOCAP:FILLED is written).
-            let labels: Vec<String> = take.markers().iter().map(|m| m.full()).collect();
-            let filled = crate::cmd::clean::ranges(&cleaned.filled.take, &cleaned.filled.filled, &labels);
-            crate::cmd::clean::set_ranges(&mut file, "FILLED", &filled)?;
-            let method = match &refiner {
-                Some(r) => format!("locap solve: Neural {} (EDM start)", r.meta.frame.name),
-                None => "locap solve: Edm K=6".to_string(),
-            };
-            file.parameters.set_strings("LOCAP", "METHOD", &[method]);
+            // What this cleaning did, recorded as `locap clean` records it.
+            let mut record = cleaned.provenance();
+            record.method = Some(format!("locap solve: {}", cleaned.method));
+            file.set_provenance(cleaned.take(), &record).with_context(|| format!("{}", path.display()))?;
             locap_io::c3d::write_path(&file, path)?;
         }
         Ok(Solved {

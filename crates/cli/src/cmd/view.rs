@@ -8,7 +8,7 @@
 use crate::inputs;
 use anyhow::{Context, Result};
 use clap::{Parser, ValueEnum};
-use locap_core::{LengthUnit, Take, UpAxis};
+use locap_core::{LengthUnit, Provenance, Take, UpAxis};
 use locap_io::{bvh, csv};
 use locap_view::{SampleState, ViewInput};
 use std::path::{Path, PathBuf};
@@ -112,17 +112,16 @@ pub fn run(args: Args) -> Result<ExitCode> {
 /// C3D file that `locap clean` wrote; captured or missing otherwise).
 pub(crate) fn read_take(path: &Path) -> Result<(Take, Vec<SampleState>)> {
     let ext = path.extension().and_then(|e| e.to_str()).unwrap_or_default().to_ascii_lowercase();
-    let (take, filled, outliers) = match ext.as_str() {
-        "trc" => (crate::inputs::read_trc(path)?, Vec::new(), Vec::new()),
-        "csv" => (csv::read_csv_path(path)?, Vec::new(), Vec::new()),
+    let (take, record) = match ext.as_str() {
+        "trc" => (crate::inputs::read_trc(path)?, Provenance::default()),
+        "csv" => (csv::read_csv_path(path)?, Provenance::default()),
         _ => {
             let file = crate::inputs::read_c3d(path)?;
             let take = file.to_take().map_err(|e| e.in_file(path))?;
-            let filled = file.parameters.continued_strings("LOCAP", "FILLED");
-            let outliers = file.parameters.continued_strings("LOCAP", "OUTLIERS");
-            (take, filled, outliers)
+            let record = file.provenance(&take).with_context(|| format!("{}", path.display()))?;
+            (take, record)
         }
     };
-    let states = locap_view::sample_states(&take, &filled, &outliers).with_context(|| format!("{}", path.display()))?;
+    let states = locap_view::sample_states(&take, &record);
     Ok((take, states))
 }

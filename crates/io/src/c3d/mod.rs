@@ -73,6 +73,7 @@ pub use read::{ReadOptions, read, read_path, read_path_with, read_with};
 pub use write::{write, write_path};
 
 use crate::{Error, Result};
+use locap_core::provenance::{self, Provenance, ProvenanceError};
 use locap_core::take::SampleQuality;
 use locap_core::{LengthUnit, MarkerName, Take, UpAxis, Vec3};
 
@@ -344,6 +345,32 @@ impl C3dFile {
             }
         }
         Ok(take)
+    }
+
+    /// What locap recorded in this file's `LOCAP` group about `take` (the file's own take,
+    /// or one of the same markers and frames); empty for a file locap did not change.
+    ///
+    /// # Errors
+    /// A `LOCAP` list that is corrupt or does not fit `take` (see
+    /// [`Provenance::from_parameters`]).
+    pub fn provenance(&self, take: &Take) -> std::result::Result<Provenance, ProvenanceError> {
+        Provenance::from_parameters(take, |name| self.parameters.continued_strings(provenance::GROUP, name))
+    }
+
+    /// Stores `record` (about `take`, the take this file holds) in the `LOCAP` group,
+    /// replacing the lists an earlier run left.
+    ///
+    /// # Errors
+    /// A list past the compact form's ceiling.
+    pub fn set_provenance(&mut self, take: &Take, record: &Provenance) -> std::result::Result<(), ProvenanceError> {
+        for (name, strings) in record.to_parameters(take)? {
+            if name == "METHOD" {
+                self.parameters.set_strings(provenance::GROUP, name, &strings);
+            } else {
+                self.parameters.set_continued_strings(provenance::GROUP, name, &strings);
+            }
+        }
+        Ok(())
     }
 
     /// Replaces the point data with `take` (positions converted back to the file's unit).

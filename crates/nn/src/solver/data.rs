@@ -6,12 +6,10 @@
 //! positions in the waist frame.
 
 use crate::NnError;
-use crate::features::{LocalTake, edm_config, marker_order};
+use crate::features::{LocalTake, marker_order};
 use crate::refiner::Refiner;
-use locap_clean::Filled;
+use locap_clean::CleanConfig;
 use locap_clean::local_frame::{FrameDefinition, LocalFrame, local_frames};
-use locap_clean::outliers::{self, OutlierConfig};
-use locap_clean::swaps::{self, SwapConfig};
 use locap_core::{MarkerName, Quat, Skeleton, Take, Vec3};
 use locap_synth::shard::ShardReader;
 use locap_synth::synthesize::LabFrame;
@@ -135,33 +133,21 @@ pub fn lab_rotation(lab: LabFrame) -> Matrix3<f64> {
 }
 
 /// A take cleaned as `locap solve` cleans it, and which samples were observed.
-#[derive(Debug, Clone)]
-pub struct Cleaned {
-    /// Outliers removed, every gap filled, outlier windows refilled by spline.
-    pub filled: Filled,
-    /// `[frame * markers + marker]` (take order): observed and not an outlier.
-    pub visible: Vec<bool>,
-}
+pub use locap_clean::Cleaned;
 
-/// LocalMoCap section 3.1 before solving, as `locap clean` does it with its defaults: swapped
-/// labels exchanged back, outliers detected and removed, gaps filled by EDM (K = 6) or the
-/// `refiner`, outlier windows refilled by spline.
+/// LocalMoCap section 3.1 before solving, as `locap clean` does it with its defaults
+/// (`locap_clean::clean` with `CleanConfig::default()`): swapped labels exchanged back,
+/// outliers detected and removed, gaps filled by EDM (K = 6) or the `refiner`, outlier windows
+/// refilled by spline.
 ///
 /// # Errors
 /// The refiner cannot run on the take.
 pub fn clean_for_solving(take: &Take, refiner: Option<&Refiner>) -> Result<Cleaned, NnError> {
-    let mut raw = take.clone();
-    let swapped = swaps::detect(&raw, &SwapConfig::default());
-    swaps::unswap(&mut raw, &swapped);
-    let found = outliers::detect(&raw, &OutlierConfig::default());
-    let mut holed = raw;
-    outliers::remove(&mut holed, &found);
-    let mut filled = match refiner {
-        Some(r) => r.refine(&holed)?,
-        None => locap_clean::fill_gaps(&holed, &edm_config(6)),
-    };
-    locap_clean::refill_outliers(&mut filled, &found);
-    Ok(Cleaned { visible: holed.validity().to_vec(), filled })
+    let config = CleanConfig::default();
+    match refiner {
+        Some(r) => locap_clean::clean_with(take, &config, r).map_err(NnError::from),
+        None => Ok(locap_clean::clean(take, &config)),
+    }
 }
 
 /// A cleaned take's model markers in the waist frame, with visibility (model order).

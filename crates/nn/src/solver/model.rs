@@ -12,7 +12,7 @@
 //!
 //! # Inference ([`Solver::solve`])
 //!
-//! The take is cleaned ([`clean_for_solving`]: outliers, EDM or refiner fill), its markers go to
+//! The take is cleaned (`locap_clean::clean`: swaps, outliers, EDM or refiner fill), its markers go to
 //! the waist frame, and the network solves every frame on its own. Per frame it gives the local
 //! rotations (the root's relative to the waist frame, turned back to the motion frame with the
 //! frame's rotation), the root position (waist frame, back to the lab and then the motion
@@ -21,16 +21,16 @@
 //! subject. Joints that never rotate in the training data (end sites, joints without degrees of
 //! freedom) get the identity.
 
-use super::data::{Cleaned, LocalInput, clean_for_solving, lab_rotation};
+use super::data::{Cleaned, LocalInput, lab_rotation};
 use super::net::{Gathers, JOINT_OUTPUTS, SolverArchitecture, SolverGraph, SolverNet};
 use crate::NnError;
 use crate::features::{Normalisation, input_values};
-use crate::refiner::Refiner;
 use burn::module::Module;
 use burn::prelude::*;
 use burn::store::ModuleRecord;
 use burn::tensor::Bytes;
 use locap_clean::local_frame::FrameDefinition;
+use locap_clean::{CleanConfig, Filler};
 use locap_core::{Joint, Motion, Quat, Skeleton, Take, Vec3};
 use locap_synth::synthesize::LabFrame;
 use nalgebra::{Matrix3, Rotation3};
@@ -255,21 +255,23 @@ impl Solver {
         Ok(solver)
     }
 
-    /// The whole pipeline on a raw take: outliers, gap fill (EDM, or `refiner`), solving.
+    /// The whole pipeline on a raw take: swaps and outliers repaired, gaps filled by `filler`
+    /// (`locap_clean::FillConfig::default()` for EDM, or [`crate::Refiners`]), solving.
     /// Returns the motion (the model's skeleton, bone offsets fitted to the take, the take's
     /// frame rate and frame count) and the cleaned take.
     ///
     /// # Errors
-    /// The take lacks model markers, or its waist frame is never defined.
-    pub fn solve(&self, take: &Take, refiner: Option<&Refiner>) -> Result<(Motion, Cleaned), NnError> {
+    /// The take lacks model markers, the filler cannot run on it, or its waist frame is never
+    /// defined.
+    pub fn solve(&self, take: &Take, filler: &dyn Filler) -> Result<(Motion, Cleaned), NnError> {
         // Check the markers before the (slower) cleaning.
         crate::features::marker_order(take, &self.meta.markers)?;
-        let cleaned = clean_for_solving(take, refiner)?;
+        let cleaned = locap_clean::clean_with(take, &CleanConfig::default(), filler)?;
         let motion = self.solve_cleaned(&cleaned, take.frame_rate_hz())?;
         Ok((motion, cleaned))
     }
 
-    /// Solves a take cleaned by [`clean_for_solving`].
+    /// Solves a take cleaned by `locap_clean::clean` (see [`Solver::solve`]).
     ///
     /// # Errors
     /// The take lacks model markers, or its waist frame is never defined.
