@@ -85,6 +85,26 @@ pub fn rank_scored(take: &Take, selection: Selection) -> Vec<Vec<(usize, f64)>> 
         .collect()
 }
 
+/// Marker pairs joined by an edge when drawing a take: each marker with its `per_marker`
+/// most stable neighbours ([`rank_scored`] by variance; pairs never seen together left out),
+/// each pair once as `[lower index, higher index]`, sorted. Empty for `per_marker == 0`.
+pub fn stable_edges(take: &Take, per_marker: usize) -> Vec<[usize; 2]> {
+    if per_marker == 0 || take.marker_count() < 2 {
+        return Vec::new();
+    }
+    let ranked = rank_scored(take, Selection::Variance);
+    let mut edges: Vec<[usize; 2]> = ranked
+        .iter()
+        .enumerate()
+        .flat_map(|(i, list)| {
+            list.iter().filter(|(_, v)| v.is_finite()).take(per_marker).map(move |&(j, _)| [i.min(j), i.max(j)])
+        })
+        .collect();
+    edges.sort_unstable();
+    edges.dedup();
+    edges
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -119,5 +139,16 @@ mod tests {
     fn nearest_ranks_first_by_mean_distance() {
         let ranked = rank(&take(), Selection::MeanDistance);
         assert_eq!(ranked[0][0], 4);
+    }
+
+    #[test]
+    fn stable_edges_join_rigid_partners_once() {
+        let edges = stable_edges(&take(), 1);
+        // Markers 0-2 are rigid: each one's steadiest neighbour is another of them.
+        assert!(edges.contains(&[0, 1]) || edges.contains(&[0, 2]), "{edges:?}");
+        assert!(edges.windows(2).all(|w| w[0] < w[1]), "sorted, each pair once: {edges:?}");
+        assert!(edges.iter().all(|[a, b]| a < b));
+        assert!(edges.len() <= 5);
+        assert!(stable_edges(&take(), 0).is_empty());
     }
 }

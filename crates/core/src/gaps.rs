@@ -180,6 +180,47 @@ impl GapStatistics {
     }
 }
 
+/// The gap-length bins every metric and chart of locap reports by, frames, inclusive bounds
+/// (the last bin is open, `usize::MAX`): one binning, so the fill benchmark, the solver
+/// evaluation and the gap-length histograms of takes can be read side by side.
+///
+/// They are the fill benchmark's bins: up to 10 frames (interpolation is nearly exact), then
+/// roughly doubling up to 2 s at 120 Hz, and everything longer.
+pub const LENGTH_BINS: [(usize, usize); 6] = [(1, 10), (11, 30), (31, 60), (61, 120), (121, 240), (241, usize::MAX)];
+
+/// Index in [`LENGTH_BINS`] of a gap of `len` frames (`None` for 0: no gap).
+pub fn length_bin(len: usize) -> Option<usize> {
+    LENGTH_BINS.iter().position(|&(lo, hi)| len >= lo && len <= hi)
+}
+
+/// Label of the bin `lo..=hi` frames: `1-10`, `241+` for an open bin, `5` for one length.
+pub fn range_label(lo: usize, hi: usize) -> String {
+    if hi == usize::MAX {
+        format!("{lo}+")
+    } else if lo == hi {
+        lo.to_string()
+    } else {
+        format!("{lo}-{hi}")
+    }
+}
+
+/// Labels of [`LENGTH_BINS`], in order.
+pub fn length_bin_labels() -> Vec<String> {
+    LENGTH_BINS.iter().map(|&(lo, hi)| range_label(lo, hi)).collect()
+}
+
+/// A gap-length histogram (`[n]` = gaps of `n` frames, as in [`GapStatistics`]) summed into
+/// [`LENGTH_BINS`].
+pub fn binned(histogram: &[usize]) -> [usize; LENGTH_BINS.len()] {
+    let mut out = [0; LENGTH_BINS.len()];
+    for (len, n) in histogram.iter().enumerate() {
+        if let Some(bin) = length_bin(len) {
+            out[bin] += n;
+        }
+    }
+    out
+}
+
 fn histogram(lengths: impl Iterator<Item = usize>) -> Vec<usize> {
     let mut h = Vec::new();
     for len in lengths {
@@ -245,6 +286,30 @@ mod tests {
         assert_eq!(pooled.total_frames, 8);
         assert_eq!(pooled.missing_fraction(), 0.25);
         assert!(GapStatistics::pool([]).is_none());
+    }
+
+    #[test]
+    fn every_gap_length_has_one_bin() {
+        assert_eq!(length_bin(0), None);
+        assert_eq!(length_bin(1), Some(0));
+        assert_eq!(length_bin(10), Some(0));
+        assert_eq!(length_bin(11), Some(1));
+        assert_eq!(length_bin(240), Some(4));
+        assert_eq!(length_bin(241), Some(5));
+        assert_eq!(length_bin(usize::MAX), Some(5));
+        for w in LENGTH_BINS.windows(2) {
+            assert_eq!(w[0].1 + 1, w[1].0, "bins are contiguous");
+        }
+        assert_eq!(length_bin_labels(), ["1-10", "11-30", "31-60", "61-120", "121-240", "241+"]);
+        assert_eq!(range_label(5, 5), "5");
+        // Gaps of 1, 10, 11 and 300 frames (index 0 unused).
+        let mut h = vec![0; 301];
+        h[0] = 7;
+        h[1] = 1;
+        h[10] = 2;
+        h[11] = 1;
+        h[300] = 4;
+        assert_eq!(binned(&h), [3, 1, 0, 0, 0, 4]);
     }
 
     proptest! {

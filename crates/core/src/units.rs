@@ -3,7 +3,12 @@
 //! Capture files store lengths in millimetres (most C3D), metres (some TRC, OpenSim), or
 //! centimetres and inches (BVH exporters). locap converts everything to millimetres on read;
 //! [`LengthUnit`] records what a file used so it can be written back the same way.
+//!
+//! Vertical axes differ too: C3D labs are Z-up, BVH, ASF/AMC and three.js Y-up. [`UpAxis`]
+//! says which a take uses, and [`y_up_to_z_up`] / [`z_up_to_y_up`] are the one convention
+//! every crate converts between them with.
 
+use crate::{Quat, Vec3};
 use serde::{Deserialize, Serialize};
 
 /// A unit of length as found in capture files.
@@ -70,6 +75,39 @@ pub enum UpAxis {
     Z,
 }
 
+/// The lab convention between Y-up and Z-up frames, defined once for every stage: a Y-up
+/// point `(x, y, z)` (BVH, ASF/AMC, three.js) is the Z-up point `(z, x, y)` (C3D, Vicon).
+///
+/// Any rotation taking Y to Z would do for markers alone; this one (a cyclic swap of the
+/// axes, a rotation with no mirroring) is the one under which CMU's AMC motions land on the
+/// markers of their C3D takes (measured on CMU 01_01, see `locap_io`'s `amc_matches_c3d`
+/// test), so motions, synthetic takes and the viewer agree with CMU's data.
+pub fn y_up_to_z_up(p: Vec3) -> Vec3 {
+    Vec3::new(p.z, p.x, p.y)
+}
+
+/// The inverse of [`y_up_to_z_up`]: a Z-up point `(x, y, z)` is the Y-up point `(y, z, x)`.
+pub fn z_up_to_y_up(p: Vec3) -> Vec3 {
+    Vec3::new(p.y, p.z, p.x)
+}
+
+/// [`y_up_to_z_up`] as a rotation (for poses and orientations).
+pub fn y_up_to_z_up_rotation() -> Quat {
+    let m = nalgebra::Matrix3::new(0.0, 0.0, 1.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0);
+    Quat::from_rotation_matrix(&nalgebra::Rotation3::from_matrix_unchecked(m))
+}
+
+impl UpAxis {
+    /// A point of a frame whose vertical axis is `self` in Y-up axes ([`z_up_to_y_up`] for
+    /// Z-up, unchanged for Y-up).
+    pub fn to_y_up(self, p: Vec3) -> Vec3 {
+        match self {
+            UpAxis::Y => p,
+            UpAxis::Z => z_up_to_y_up(p),
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -81,5 +119,17 @@ mod tests {
         assert_eq!(LengthUnit::parse("cm"), Some(LengthUnit::Centimetre));
         assert_eq!(LengthUnit::parse("furlong"), None);
         assert_eq!(LengthUnit::Metre.mm_per_unit(), 1000.0);
+    }
+
+    #[test]
+    fn the_lab_convention_is_one_rotation_and_its_inverse() {
+        let p = Vec3::new(1.0, 2.0, 3.0);
+        // Y-up "up" (0, 1, 0) is Z-up "up" (0, 0, 1).
+        assert_eq!(y_up_to_z_up(Vec3::y()), Vec3::z());
+        assert_eq!(y_up_to_z_up(p), Vec3::new(3.0, 1.0, 2.0));
+        assert_eq!(z_up_to_y_up(y_up_to_z_up(p)), p);
+        assert!((y_up_to_z_up_rotation() * p - y_up_to_z_up(p)).norm() < 1e-12);
+        assert_eq!(UpAxis::Z.to_y_up(Vec3::z()), Vec3::y());
+        assert_eq!(UpAxis::Y.to_y_up(p), p);
     }
 }

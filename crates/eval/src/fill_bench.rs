@@ -7,12 +7,15 @@
 //! hidden samples only), the error by gap length, how many hidden samples the method left
 //! unfilled, and throughput (take frames filled per second of wall time on one core).
 //!
-//! The methods of `locap_clean` are [`Variant`]s; other fillers (the learned refiner, which
-//! this crate does not depend on) come in as [`Method`]s and are scored on the same gaps.
+//! Every method under test is a [`Candidate`]: a name and a [`Filler`], so the methods of
+//! `locap_clean` ([`Variant`]s, through [`VariantFiller`]) and learned refiners are scored
+//! alike, on the same gaps. Errors by gap length use the bins of every locap metric,
+//! [`locap_core::gaps::LENGTH_BINS`].
 
 use crate::gap_model::GapModel;
-use locap_clean::{FillConfig, FillMethod, fill_gaps, neighbours::Selection};
+use locap_clean::{FillConfig, FillError, FillMethod, Filled, Filler, fill_gaps, neighbours::Selection};
 use locap_core::Take;
+use locap_core::gaps::{LENGTH_BINS, range_label};
 use rand::SeedableRng;
 use serde::{Deserialize, Serialize};
 use std::time::Instant;
@@ -45,55 +48,71 @@ impl Variant {
     }
 }
 
-/// Fills every gap of a take, or says why it cannot (its hidden samples then count as
-/// unfilled).
-pub type FillFn<'a> = Box<dyn Fn(&Take) -> Result<Take, String> + 'a>;
-
-/// A filler under test.
-pub struct Method<'a> {
+/// A filler under test, with its name in the report.
+#[derive(Clone, Copy)]
+pub struct Candidate<'a> {
     /// Name in the report.
-    pub name: String,
+    pub name: &'a str,
     /// The filler.
-    pub fill: FillFn<'a>,
+    pub filler: &'a dyn Filler,
 }
 
 /// Most markers a take may have for the PCA fill to run on it in the benchmark.
 ///
 /// The PCA fill ([`locap_clean::baseline::pca`]) eigen-decomposes a `3P x 3P` covariance
 /// matrix for every marker with gaps, `P` its predictors (nearly every other marker), so its
-/// cost grows as `markers^4` whatever the frame count: profiled on 5-frame takes with every
-/// tenth marker hidden in one frame, 100 / 200 / 400 markers took 0.5 / 8 / 232 s (release
-/// build; debug: 50 / 100 / 200 in 1.7 / 24 / 356 s), so 3,000 markers would take days
-/// (issue 14: `bench fill` "hangs" on 3,000 x 5). Above the ceiling the PCA variant refuses
-/// the take (a failure in the report, its hidden samples unfilled) and every other method
-/// still runs: they grow as `markers^2`, and the whole benchmark of a 3,000 x 5 take takes
-/// 15 s (release). 256 markers (about 20 s of PCA) is over three times the largest marker
-/// set in the shared data (76 points). Making the PCA itself cheap on short takes (a `T x T`
-/// Gram matrix instead of the `3P x 3P` covariance) is a change to `locap_clean`.
+/// cost grows as `markers^4` whatever the frame count, while every other method grows as
+/// `markers^2` (issue 14: `bench fill` "hung" on a 3,000 x 5 take). Above the ceiling the PCA
+/// variant refuses the take (a failure in the report, its hidden samples unfilled) and every
+/// other method still runs. 256 markers is over three times the largest marker set in the
+/// shared data; the timings behind the choice are in `docs/benchmarks.md`. Making the PCA
+/// itself cheap on short takes (a `T x T` Gram matrix instead of the `3P x 3P` covariance) is
+/// a change to `locap_clean`.
 pub const MAX_PCA_MARKERS: usize = 256;
 
+/// The PCA variant refused a take above [`MAX_PCA_MARKERS`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
+#[error("{markers} markers: the PCA fill's cost grows as markers^4, it runs on at most {MAX_PCA_MARKERS}")]
+pub struct TooManyMarkersForPca {
+    /// Markers of the take.
+    pub markers: usize,
+}
+
+/// A [`Variant`] with its neighbour count, as the benchmark runs it: [`fill_gaps`], except
+/// that the PCA variant refuses takes of more than [`MAX_PCA_MARKERS`] markers.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct VariantFiller {
+    /// The variant.
+    pub variant: Variant,
+    /// Its fill configuration.
+    pub config: FillConfig,
+}
+
 impl Variant {
-    /// This variant as a [`Method`] with `neighbours` neighbours (the PCA variant refuses
-    /// takes of more than [`MAX_PCA_MARKERS`] markers).
-    pub fn method(self, neighbours: usize) -> Method<'static> {
-        let config = FillConfig { method: self.method, neighbours, selection: self.selection };
-        let fill = move |take: &Take| {
-            let m = take.marker_count();
-            if config.method == FillMethod::Pca && m > MAX_PCA_MARKERS {
-                return Err(format!(
-                    "{m} markers: the PCA fill's cost grows as markers^4, it runs on at most {MAX_PCA_MARKERS}"
-                ));
-            }
-            Ok(fill_gaps(take, &config).take)
-        };
-        Method { name: self.name(), fill: Box::new(fill) }
+    /// This variant as a [`Filler`] with `neighbours` neighbours.
+    pub fn filler(self, neighbours: usize) -> VariantFiller {
+        VariantFiller {
+            variant: self,
+            config: FillConfig { method: self.method, neighbours, selection: self.selection },
+        }
     }
 }
 
-/// Gap-length buckets in frames (inclusive bounds), for error-by-length.
-pub const BUCKETS: [(usize, usize); 6] = [(1, 10), (11, 30), (31, 60), (61, 120), (121, 240), (241, usize::MAX)];
+impl Filler for VariantFiller {
+    fn describe(&self) -> String {
+        self.config.describe()
+    }
 
-/// Error of one method on gaps of one length bucket.
+    fn fill(&self, take: &Take) -> Result<Filled, FillError> {
+        let markers = take.marker_count();
+        if self.config.method == FillMethod::Pca && markers > MAX_PCA_MARKERS {
+            return Err(FillError::new(self, TooManyMarkersForPca { markers }));
+        }
+        Ok(fill_gaps(take, &self.config))
+    }
+}
+
+/// Error of one method on gaps of one length bin ([`LENGTH_BINS`]).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Bucket {
     /// Shortest gap in the bucket, frames.
@@ -104,6 +123,13 @@ pub struct Bucket {
     pub samples: usize,
     /// Mean error, mm (`null` without samples).
     pub mean_mm: Option<f64>,
+}
+
+impl Bucket {
+    /// The bin's label: `1-10`, `241+`.
+    pub fn label(&self) -> String {
+        range_label(self.min_frames, self.max_frames)
+    }
 }
 
 /// The result of one method.
@@ -183,12 +209,20 @@ pub fn run(
     neighbours: usize,
     seed: u64,
 ) -> FillBenchReport {
-    let methods: Vec<Method> = variants.iter().map(|v| v.method(neighbours)).collect();
-    run_methods(takes, model, &methods, seed)
+    let fillers: Vec<(String, VariantFiller)> = variants.iter().map(|v| (v.name(), v.filler(neighbours))).collect();
+    let candidates: Vec<Candidate> = fillers.iter().map(|(name, filler)| Candidate { name, filler }).collect();
+    run_candidates(takes, model, &candidates, seed)
 }
 
-/// Runs the benchmark on `takes` (name, take) with gaps from `model` for any fillers.
-pub fn run_methods(takes: &[(String, Take)], model: &GapModel, variants: &[Method], seed: u64) -> FillBenchReport {
+/// Runs the benchmark on `takes` (name, take) with gaps from `model` for any fillers. A
+/// filler that fails on a take leaves that take's hidden samples unfilled and its reason in
+/// [`MethodResult::failures`].
+pub fn run_candidates(
+    takes: &[(String, Take)],
+    model: &GapModel,
+    variants: &[Candidate],
+    seed: u64,
+) -> FillBenchReport {
     let mut failures: Vec<Vec<String>> = vec![Vec::new(); variants.len()];
     let mut errors: Vec<Vec<(f64, usize)>> = vec![Vec::new(); variants.len()];
     // Per variant, the error of every hidden sample in one global order (`None` = unfilled),
@@ -204,10 +238,14 @@ pub fn run_methods(takes: &[(String, Take)], model: &GapModel, variants: &[Metho
         total_frames += truth.frame_count();
         for (v, variant) in variants.iter().enumerate() {
             let start = Instant::now();
-            let filled = (variant.fill)(&holed).unwrap_or_else(|why| {
-                failures[v].push(format!("{name}: {why}"));
-                holed.clone()
-            });
+            let filled = match variant.filler.fill(&holed) {
+                Ok(filled) => filled.take,
+                Err(why) => {
+                    // The candidate's name already says which filler; its reason is enough.
+                    failures[v].push(format!("{name}: {}", why.source));
+                    holed.clone()
+                }
+            };
             seconds[v] += start.elapsed().as_secs_f64();
             for &(f, m, len) in &hidden {
                 match (filled.position_mm(f, m), truth.position_mm(f, m)) {
@@ -237,7 +275,7 @@ pub fn run_methods(takes: &[(String, Take)], model: &GapModel, variants: &[Metho
             let pick = |q: f64| -> f64 {
                 if sorted.is_empty() { f64::NAN } else { sorted[((sorted.len() - 1) as f64 * q).round() as usize] }
             };
-            let by_gap_length = BUCKETS
+            let by_gap_length = LENGTH_BINS
                 .iter()
                 .map(|&(lo, hi)| {
                     let in_bucket: Vec<f64> = e.iter().filter(|x| x.1 >= lo && x.1 <= hi).map(|x| x.0).collect();
@@ -251,7 +289,7 @@ pub fn run_methods(takes: &[(String, Take)], model: &GapModel, variants: &[Metho
                 })
                 .collect();
             MethodResult {
-                method: variant.name.clone(),
+                method: variant.name.to_string(),
                 failures: failures[v].clone(),
                 scored_samples: e.len(),
                 unfilled_samples: unfilled[v],
@@ -275,6 +313,15 @@ pub fn run_methods(takes: &[(String, Take)], model: &GapModel, variants: &[Metho
 }
 
 impl FillBenchReport {
+    /// Mean error by gap length as data series: per method, its name and `(bin label, mean
+    /// mm)` points (`None` without samples), e.g. for `locap_view::plot::Chart::fill_error`.
+    pub fn error_by_gap_length(&self) -> Vec<(String, Vec<(String, Option<f64>)>)> {
+        self.methods
+            .iter()
+            .map(|m| (m.method.clone(), m.by_gap_length.iter().map(|b| (b.label(), b.mean_mm)).collect()))
+            .collect()
+    }
+
     /// The report as a text table.
     pub fn table(&self) -> String {
         use std::fmt::Write;
@@ -293,8 +340,8 @@ impl FillBenchReport {
             "{:<w$} {:>9} {:>9} {:>9} {:>9} {:>9}",
             "method", "OMPE mm", "common", "median", "p95", "unfilled"
         );
-        for (lo, hi) in BUCKETS {
-            let label = if hi == usize::MAX { format!("{lo}+ fr") } else { format!("{lo}-{hi} fr") };
+        for (lo, hi) in LENGTH_BINS {
+            let label = format!("{} fr", range_label(lo, hi));
             let _ = write!(s, " {label:>9}");
         }
         let _ = writeln!(s, " {:>12}", "frames/s");
@@ -384,5 +431,19 @@ mod tests {
         );
         assert_eq!(pca.unfilled_samples, report.hidden_samples);
         assert!(linear.failures.is_empty());
+    }
+
+    #[test]
+    fn the_report_gives_its_errors_by_gap_length_as_series() {
+        let json = r#"{"takes":["a.c3d"],"seed":1,"hidden_samples":10,"hidden_gaps":2,"methods":[
+            {"method":"edm","scored_samples":10,"unfilled_samples":0,"ompe_mean_mm":5.0,"ompe_common_mm":5.0,
+             "ompe_median_mm":4.0,"ompe_p95_mm":9.0,"seconds":0.1,"frames_per_second":100.0,
+             "by_gap_length":[{"min_frames":1,"max_frames":10,"samples":4,"mean_mm":1.5},
+                              {"min_frames":241,"max_frames":18446744073709551615,"samples":0,"mean_mm":null}]}]}"#;
+        let report: FillBenchReport = serde_json::from_str(json).unwrap();
+        assert_eq!(
+            report.error_by_gap_length(),
+            vec![("edm".to_string(), vec![("1-10".to_string(), Some(1.5)), ("241+".to_string(), None)])]
+        );
     }
 }

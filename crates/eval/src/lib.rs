@@ -7,10 +7,25 @@
 //! occlusion probability, heavy-tailed gap lengths, segments placed longest first without
 //! overlap), and [`fill_bench`] fills them with every method on *the same* gaps, then scores
 //! exactly the hidden samples.
+//!
+//! # Solver metrics
+//! [`solver`] scores motion solvers on held-out synthetic shards as section 4.2 of the paper
+//! does (JOE, JPE and the cleaning's OMPE, Table 1), and compares solved motions with a
+//! reference solution of real takes.
+//!
+//! # Labeling benchmark
+//! [`unlabel`] turns labeled takes into what a capture system delivers, and [`label_bench`]
+//! scores labelers on them (identification rate, labeling paper section 5.1).
+//!
+//! Every error by gap length here is in the bins of [`locap_core::gaps::LENGTH_BINS`], so the
+//! fill benchmark, the solver evaluation and the gap-length charts of `locap_view` compare.
+//! Like the stages, this crate reads no files: the `locap` binary finds the takes and shards,
+//! and draws the charts from the data series the reports give.
 
 pub mod fill_bench;
 /// Moved to `locap-synth` (the training-data augmentation and the benchmark share one gap
 /// model); re-exported so `locap_eval::gap_model` keeps working.
 pub use locap_synth::gap_model;
 pub mod label_bench;
+pub mod solver;
 pub mod unlabel;

@@ -74,8 +74,7 @@ impl MarkerModel {
 
     /// The rotation taking a Y-up skeleton's `(x, y, z)` to a Z-up lab's `(z, x, y)`.
     pub fn y_up_in_z_up_lab() -> Quat {
-        let m = nalgebra::Matrix3::new(0.0, 0.0, 1.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0);
-        Quat::from_rotation_matrix(&nalgebra::Rotation3::from_matrix_unchecked(m))
+        locap_core::units::y_up_to_z_up_rotation()
     }
 
     /// Number of markers (attached or not).

@@ -17,6 +17,14 @@ fn start(refiner: &Refiner) -> &'static str {
     }
 }
 
+impl Refiner {
+    /// Whether `take` carries every marker this refiner was trained on (the one test of "the
+    /// refiners that fit this take").
+    pub fn fits(&self, take: &Take) -> bool {
+        crate::features::marker_order(take, &self.meta.markers).is_ok()
+    }
+}
+
 impl Filler for Refiner {
     fn describe(&self) -> String {
         format!("Neural {} ({} start)", self.meta.frame.name, start(self))

@@ -9,7 +9,6 @@
 //! skeleton).
 
 use crate::NnError;
-use crate::features::marker_order;
 use crate::refiner::Refiner;
 use crate::refiners::Refiners;
 use crate::solver::Solver;
@@ -51,7 +50,7 @@ pub fn solver(device: &Device) -> Result<Solver, NnError> {
 /// # Errors
 /// A shipped file does not load (a build from a damaged checkout).
 pub fn refiners_for(take: &Take, device: &Device) -> Result<Refiners, NnError> {
-    let fitting = refiners(device)?.into_iter().filter(|r| marker_order(take, &r.meta.markers).is_ok());
+    let fitting = refiners(device)?.into_iter().filter(|r| r.fits(take));
     Ok(Refiners::new(fitting.map(|r| (format!("shipped {}", r.meta.frame.name), r)).collect()))
 }
 

@@ -283,7 +283,7 @@ fn solver_shards(dir: &std::path::Path, n: u64, frames: usize) {
 /// other marker sets and bad files; the MLP baseline trains in the same harness.
 #[test]
 fn a_tiny_solver_learns_and_solves_takes() {
-    use locap_nn::solver::eval::evaluate;
+    use locap_eval::solver::evaluate;
     use locap_nn::solver::{Solver, SolverData, SolverTrainConfig, Variant, train_solver};
     let _one_at_a_time = TRAINING.lock().unwrap_or_else(|e| e.into_inner());
     let dir = tempfile::tempdir().unwrap();
@@ -318,7 +318,7 @@ fn a_tiny_solver_learns_and_solves_takes() {
         train_solver(&data, &SolverTrainConfig { steps: 1, ..config.clone() }, None, &mut |_| {}).unwrap().0;
     let scores =
         evaluate(&[("trained".into(), &solver), ("untrained".into(), &untrained)], &test.shards, None).unwrap();
-    eprintln!("{}", locap_nn::solver::eval::table("body", &scores));
+    eprintln!("{}", locap_eval::solver::table("body", &scores));
     assert!(scores[0].jpe_mm < 0.5 * scores[1].jpe_mm && scores[0].joe_deg < scores[1].joe_deg, "{scores:?}");
     assert!(scores[0].ompe_mm.unwrap() > 0.0);
 

@@ -48,7 +48,7 @@ pub enum LabFrame {
     /// Keep the motion's frame (the take is marked Y-up, as BVH and ASF are).
     Motion,
     /// A Y-up motion in a Z-up lab, as CMU publishes its C3D takes: lab `(X, Y, Z)` = motion
-    /// `(z, x, y)` (measured on CMU 01_01, see `locap_io`'s `amc_matches_c3d` test).
+    /// `(z, x, y)`, the convention of [`locap_core::units::y_up_to_z_up`].
     #[default]
     ZUpFromYUp,
 }
@@ -58,7 +58,7 @@ impl LabFrame {
     pub fn to_lab(self, p: Vec3) -> Vec3 {
         match self {
             LabFrame::Motion => p,
-            LabFrame::ZUpFromYUp => Vec3::new(p.z, p.x, p.y),
+            LabFrame::ZUpFromYUp => locap_core::units::y_up_to_z_up(p),
         }
     }
 
@@ -66,7 +66,7 @@ impl LabFrame {
     pub fn to_motion(self, p: Vec3) -> Vec3 {
         match self {
             LabFrame::Motion => p,
-            LabFrame::ZUpFromYUp => Vec3::new(p.y, p.z, p.x),
+            LabFrame::ZUpFromYUp => locap_core::units::z_up_to_y_up(p),
         }
     }
 

@@ -41,13 +41,15 @@ fn bench(c: &mut Criterion) {
     group.sample_size(10);
     group.bench_function("render", |b| {
         b.iter(|| {
+            // Ranked inside the loop: the CLI ranks the edges for every page it writes.
+            let edges = locap_clean::neighbours::stable_edges(black_box(&take), 2);
             let input = locap_view::ViewInput {
                 title: "bench".into(),
                 take: black_box(&take),
                 states: &states,
                 motion: None,
                 compare: None,
-                neighbour_edges: 2,
+                edges: &edges,
             };
             black_box(locap_view::render(&input).expect("page"))
         })

@@ -53,13 +53,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     take.up_axis = source.up_axis;
     let states = locap_view::sample_states(&take, &[], &[])?;
     let started = Instant::now();
+    let edges = locap_clean::neighbours::stable_edges(&take, 2);
     let html = locap_view::render(&locap_view::ViewInput {
         title: format!("{input} x {frames} frames"),
         take: &take,
         states: &states,
         motion: None,
         compare: None,
-        neighbour_edges: 2,
+        edges: &edges,
     })?;
     let seconds = started.elapsed().as_secs_f64();
     std::fs::write(output, &html)?;

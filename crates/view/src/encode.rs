@@ -8,15 +8,14 @@
 //! 2. **Track-major second differences**: each track (one axis of one marker or joint) is
 //!    stored frame after frame, differenced twice ([`DELTA_ORDER`]; wrapping `i16`
 //!    arithmetic, so the browser undoes it with two prefix sums in an `Int16Array`). Smooth
-//!    motion turns into small numbers that compress well: on the HDM05 take the compressed
-//!    positions are 22% smaller than with one difference (14% on a noisy synthetic take). A
-//!    missing sample repeats the last known position (the first known one before it), so
-//!    gaps cost nothing and the page can draw a "ghost" where a missing marker was last seen.
+//!    motion turns into small numbers that compress well, better than after one difference
+//!    (measured on real and synthetic takes: `docs/benchmarks.md`). A missing sample repeats
+//!    the last known position (the first known one before it), so gaps cost nothing and the
+//!    page can draw a "ghost" where a missing marker was last seen.
 //! 3. **zlib** ([`flate2`], level 3) and **base64**: the browser inflates with its native
 //!    `DecompressionStream("deflate")`, no JavaScript inflater needed. Level 3 because the
-//!    differences are nearly noise to deflate: on a 10-minute take level 6 took 4.5 times as
-//!    long (1.87 s against 0.42 s) and made no smaller pages (12.4 MB against 12.1 MB; the
-//!    same 1.247 MB for the HDM05 take).
+//!    differences are nearly noise to deflate: higher levels took several times as long and
+//!    made no smaller pages (measured in `docs/benchmarks.md`).
 //!
 //! All numbers are little-endian (the byte order of every browser platform). The decoders in
 //! this module mirror the page's JavaScript and exist for the round-trip tests.

@@ -10,18 +10,21 @@
 //! script are embedded, so the page opens from disk with no network. Markers are spheres
 //! coloured by [`states::SampleState`] (captured, filled by locap, outlier replaced, still
 //! missing, read back from the `LOCAP:FILLED` / `LOCAP:OUTLIERS` parameters that `locap
-//! clean` writes), with names on hover, neighbour edges (the most stable neighbours of
-//! LocalMoCap section 3, the ones EDM fills from), the skeleton, a timeline and a per-marker
+//! clean` writes), with names on hover, neighbour edges (given by the caller: the `locap`
+//! binary draws the most stable neighbours of LocalMoCap section 3, the ones EDM fills from,
+//! ranked by `locap_clean::neighbours::stable_edges`), the skeleton, a timeline and a per-marker
 //! gap chart. Data are quantised, delta-coded and compressed ([`encode`]): a 10-minute 120 Hz
 //! take stays a page that opens in seconds.
 //!
 //! # Charts
 //! [`plot`] draws PNG or SVG charts with plotters: gap-length histograms and per-marker
-//! occlusion rates of takes, and fill error against gap length for each method of a `locap
-//! bench fill --json` report.
+//! occlusion rates of takes, and error against gap length for each method of a benchmark,
+//! from the data series its report gives (gap lengths in the bins of
+//! [`locap_core::gaps::LENGTH_BINS`], as every locap metric).
 //!
 //! Like the other library crates, this one never touches files: it takes core types and
-//! returns text or bytes; the `locap` binary reads and writes.
+//! returns text or bytes; the `locap` binary reads and writes. It depends on `locap-core`
+//! alone: what it draws is computed by the stages and benchmarks and handed in.
 
 pub mod encode;
 pub mod page;
@@ -51,6 +54,14 @@ pub enum ViewError {
         take_hz: f64,
         /// Frame rate of the motion, Hz.
         motion_hz: f64,
+    },
+    /// An edge to draw joins a marker the take does not have.
+    #[error("edge {edge:?} joins marker {}, but the take has {markers} markers", edge[0].max(edge[1]))]
+    BadEdge {
+        /// The edge (marker indices).
+        edge: [usize; 2],
+        /// Markers of the take.
+        markers: usize,
     },
     /// The sample states do not have one entry per sample.
     #[error("{found} sample states given for a take of {expected} samples")]

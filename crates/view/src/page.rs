@@ -40,9 +40,10 @@ pub struct ViewInput<'a> {
     /// A second take to overlay (e.g. ground truth), with its title. Markers are matched by
     /// name; the page shows the mean distance per frame.
     pub compare: Option<(&'a Take, String)>,
-    /// Neighbour edges drawn per marker (its most stable neighbours, LocalMoCap section 3);
-    /// 0 for none. The page has a switch to hide them.
-    pub neighbour_edges: usize,
+    /// Marker pairs (indices into `take`'s markers) joined by an edge, e.g. each marker with
+    /// its most stable neighbours (LocalMoCap section 3, `locap_clean::neighbours::stable_edges`);
+    /// empty for none. The page has a switch to hide them.
+    pub edges: &'a [[usize; 2]],
 }
 
 #[derive(Serialize)]
@@ -88,18 +89,12 @@ struct CompareMeta {
 pub const FORMAT_VERSION: u32 = 1;
 
 /// The position of `p` (in a take or motion whose vertical axis is `up`) in the viewer's
-/// axes: three.js is Y-up and right-handed, so Z-up `(x, y, z)` becomes `(y, z, x)`.
-///
-/// Any rotation that takes Z to Y would do for markers alone; this one (a cyclic swap of the
-/// axes, no mirroring) is the one under which CMU's AMC motions (Y-up, converted to BVH)
-/// land on the markers of their C3D takes (checked on 01_01: the root follows the hip markers
-/// within 35 mm of height and a constant few cm across), so solved BVH motions in that
-/// convention overlay correctly.
+/// axes: three.js is Y-up and right-handed, so a Z-up `(x, y, z)` becomes `(y, z, x)`, the lab
+/// convention of [`locap_core::units::z_up_to_y_up`] (the one under which CMU's AMC motions,
+/// Y-up, land on the markers of their Z-up C3D takes, so solved BVH motions overlay
+/// correctly).
 pub fn to_view_axes(p: Vec3, up: UpAxis) -> Vec3 {
-    match up {
-        UpAxis::Y => p,
-        UpAxis::Z => Vec3::new(p.y, p.z, p.x),
-    }
+    up.to_y_up(p)
 }
 
 /// Per frame, the mean distance in mm between the markers of `take` and the same-named
@@ -134,35 +129,20 @@ pub fn per_frame_error_mm(take: &Take, other: &Take) -> Result<(Vec<Option<f64>>
     Ok((errors, pairs.len()))
 }
 
-/// Pairs of markers joined by an edge: each marker with its `per_marker` most stable
-/// neighbours (lowest variance of their distance), each pair once.
-pub fn neighbour_edges(take: &Take, per_marker: usize) -> Vec<[usize; 2]> {
-    if per_marker == 0 || take.marker_count() < 2 {
-        return Vec::new();
-    }
-    let ranked = locap_clean::neighbours::rank_scored(take, locap_clean::neighbours::Selection::Variance);
-    let mut edges: Vec<[usize; 2]> = ranked
-        .iter()
-        .enumerate()
-        .flat_map(|(i, list)| {
-            list.iter().filter(|(_, v)| v.is_finite()).take(per_marker).map(move |&(j, _)| [i.min(j), i.max(j)])
-        })
-        .collect();
-    edges.sort_unstable();
-    edges.dedup();
-    edges
-}
-
 /// Builds the page.
 ///
 /// # Errors
-/// `states` does not have one entry per sample, or the motion or the compared take has a
-/// different frame count (or the motion a different frame rate) than the take.
+/// `states` does not have one entry per sample, an edge names a marker the take does not
+/// have, or the motion or the compared take has a different frame count (or the motion a
+/// different frame rate) than the take.
 pub fn render(input: &ViewInput<'_>) -> Result<String, ViewError> {
     let take = input.take;
     let (frames, m) = (take.frame_count(), take.marker_count());
     if input.states.len() != frames * m {
         return Err(ViewError::StateCount { expected: frames * m, found: input.states.len() });
+    }
+    if let Some(edge) = input.edges.iter().find(|e| e.iter().any(|&k| k >= m)) {
+        return Err(ViewError::BadEdge { edge: *edge, markers: m });
     }
     let up = take.up_axis;
     let marker_tracks: Vec<Vec<Option<Vec3>>> =
@@ -272,7 +252,7 @@ pub fn render(input: &ViewInput<'_>) -> Result<String, ViewError> {
             .iter()
             .map(|(info, _)| BlockInfo { name: info.name, dtype: info.dtype, len: info.len })
             .collect(),
-        edges: neighbour_edges(take, input.neighbour_edges),
+        edges: input.edges.to_vec(),
         state_names: SampleState::ALL.iter().map(|s| s.name()).collect(),
         state_counts,
         skeleton: joint_tracks.map(|(_, meta)| meta),
@@ -416,7 +396,7 @@ mod tests {
             states: &states,
             motion: Some((&m, UpAxis::Y)),
             compare: Some((&t, "same".into())),
-            neighbour_edges: 1,
+            edges: &[[0, 1], [1, 2]],
         };
         let html = render(&input).unwrap();
         assert!(html.contains("<title>a &lt;take&gt;"), "title is escaped");
@@ -454,7 +434,7 @@ mod tests {
             .collect();
         assert_eq!(errors.len(), 20);
         assert!(errors.iter().all(|e| *e == 0.0));
-        assert_eq!(page.meta["edges"].as_array().unwrap().len(), 2, "3 markers, 1 neighbour each: 2 or 3 edges");
+        assert_eq!(page.meta["edges"], serde_json::json!([[0, 1], [1, 2]]));
     }
 
     #[test]
@@ -462,13 +442,14 @@ mod tests {
         let t = take(20);
         let states = sample_states(&t, &locap_core::Provenance::default());
         let short = motion(19);
-        let base =
-            ViewInput { title: "t".into(), take: &t, states: &states, motion: None, compare: None, neighbour_edges: 0 };
+        let base = ViewInput { title: "t".into(), take: &t, states: &states, motion: None, compare: None, edges: &[] };
         let err = render(&ViewInput { motion: Some((&short, UpAxis::Y)), ..base.clone() }).unwrap_err().to_string();
         assert!(err.contains("--motion file has 19 frames, but the take has 20"), "{err}");
         let other = take(21);
         let err = render(&ViewInput { compare: Some((&other, "o".into())), ..base.clone() }).unwrap_err().to_string();
         assert!(err.contains("--compare take has 21 frames"), "{err}");
+        let err = render(&ViewInput { edges: &[[0, 3]], ..base.clone() }).unwrap_err().to_string();
+        assert!(err.contains("marker 3") && err.contains("3 markers"), "{err}");
         let err = render(&ViewInput { states: &states[1..], ..base }).unwrap_err().to_string();
         assert!(err.contains("sample states"), "{err}");
     }
@@ -478,14 +459,8 @@ mod tests {
         for t in [Take::empty(vec![], 10, 100.0).unwrap(), Take::empty(vec![MarkerName::parse("A")], 0, 100.0).unwrap()]
         {
             let states = sample_states(&t, &locap_core::Provenance::default());
-            let input = ViewInput {
-                title: "e".into(),
-                take: &t,
-                states: &states,
-                motion: None,
-                compare: None,
-                neighbour_edges: 2,
-            };
+            let input =
+                ViewInput { title: "e".into(), take: &t, states: &states, motion: None, compare: None, edges: &[] };
             let page = ParsedPage::parse(&render(&input).unwrap()).unwrap();
             assert_eq!(page.block("positions").unwrap().len(), 0);
             assert_eq!(page.meta["edges"].as_array().unwrap().len(), 0);

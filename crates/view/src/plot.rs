@@ -1,12 +1,13 @@
 //! PNG and SVG charts with [plotters](https://docs.rs/plotters): what the gaps of takes look
 //! like, and how each gap-filling method does by gap length.
 //!
-//! * [`Chart::gap_lengths`]: histogram of gap lengths (power-of-two bins), the distribution
-//!   the LocalMoCap occlusion augmentation draws from (section 3.3, Eq. 6).
+//! * [`Chart::gap_lengths`]: histogram of gap lengths (in the gap-length bins of every locap
+//!   metric, [`locap_core::gaps::LENGTH_BINS`]), the distribution the LocalMoCap occlusion
+//!   augmentation draws from (section 3.3, Eq. 6).
 //! * [`Chart::occlusion_rates`]: per marker, the fraction of frames it is missing (the
 //!   paper's per-marker occlusion probability).
 //! * [`Chart::fill_error`]: mean error against gap length, one line per method, from the
-//!   report `locap bench fill --json` writes (`locap_eval::fill_bench::FillBenchReport`).
+//!   data series a benchmark gives (`locap_eval`'s fill benchmark report converts itself).
 //!
 //! plotters is built without its default features (they pull in fontconfig, `image` and
 //! chrono): text is drawn with `ab_glyph` from DejaVu Sans cut down to ASCII (10 kB,
@@ -14,7 +15,6 @@
 
 use crate::ViewError;
 use locap_core::GapStatistics;
-use locap_eval::fill_bench::FillBenchReport;
 use plotters::coord::Shift;
 use plotters::prelude::*;
 
@@ -99,8 +99,9 @@ pub enum Chart {
 }
 
 impl Chart {
-    /// Gap-length histogram pooled over `stats` (one per take), in power-of-two bins
-    /// (1, 2, 3-4, 5-8, ... frames).
+    /// Gap-length histogram pooled over `stats` (one per take), in the bins of
+    /// [`locap_core::gaps::LENGTH_BINS`] (1-10, 11-30, ... frames) up to the longest gap, so it
+    /// reads side by side with the error-by-gap-length charts.
     ///
     /// # Errors
     /// The takes have no gaps.
@@ -109,17 +110,10 @@ impl Chart {
         for s in stats {
             locap_core::gaps::add_histogram(&mut pooled, &s.gap_length_histogram);
         }
-        let longest =
-            pooled.iter().rposition(|n| *n > 0).ok_or_else(|| ViewError::Empty("the takes have no gaps".into()))?;
-        let mut bins = Vec::new();
-        let (mut lo, mut hi) = (1usize, 1usize);
-        while lo <= longest {
-            let count = pooled[lo..=hi.min(pooled.len() - 1)].iter().sum();
-            let label = if lo == hi { lo.to_string() } else { format!("{lo}-{hi}") };
-            bins.push((label, count));
-            lo = hi + 1;
-            hi *= 2;
-        }
+        let counts = locap_core::gaps::binned(&pooled);
+        let last =
+            counts.iter().rposition(|n| *n > 0).ok_or_else(|| ViewError::Empty("the takes have no gaps".into()))?;
+        let bins = locap_core::gaps::length_bin_labels().into_iter().zip(counts).take(last + 1).collect();
         Ok(Chart::GapLengths { title: title.to_string(), bins })
     }
 
@@ -151,32 +145,35 @@ impl Chart {
         Ok(Chart::OcclusionRates { title: title.to_string(), markers })
     }
 
-    /// Mean error by gap length for each method of a fill benchmark report.
+    /// Mean error by gap length, one line per method: `methods` are a name and its
+    /// `(bin label, mean error mm)` points, `None` where the bin has no samples. The x axis has
+    /// every bin label in order of first appearance; a method without a bin has no point there.
     ///
     /// # Errors
-    /// The report has no methods or no gap-length buckets.
-    pub fn fill_error(report: &FillBenchReport, title: &str) -> Result<Chart, ViewError> {
-        let first = report.methods.first().ok_or_else(|| ViewError::Empty("the report has no methods".into()))?;
-        if first.by_gap_length.is_empty() {
-            return Err(ViewError::Empty("the report has no gap-length buckets".into()));
+    /// No methods or no bins.
+    pub fn fill_error(methods: &[(String, Vec<(String, Option<f64>)>)], title: &str) -> Result<Chart, ViewError> {
+        if methods.is_empty() {
+            return Err(ViewError::Empty("no methods".into()));
         }
-        let buckets = first
-            .by_gap_length
-            .iter()
-            .map(|b| {
-                if b.max_frames == usize::MAX {
-                    format!("{}+", b.min_frames)
-                } else {
-                    format!("{}-{}", b.min_frames, b.max_frames)
+        let mut buckets: Vec<String> = Vec::new();
+        for (_, points) in methods {
+            for (label, _) in points {
+                if !buckets.contains(label) {
+                    buckets.push(label.clone());
                 }
-            })
-            .collect::<Vec<_>>();
-        let methods = report
-            .methods
+            }
+        }
+        if buckets.is_empty() {
+            return Err(ViewError::Empty("no gap-length bins".into()));
+        }
+        let methods = methods
             .iter()
-            .map(|m| {
-                let errors = (0..buckets.len()).map(|i| m.by_gap_length.get(i).and_then(|b| b.mean_mm)).collect();
-                (m.method.clone(), errors)
+            .map(|(name, points)| {
+                let errors = buckets
+                    .iter()
+                    .map(|b| points.iter().find(|(label, _)| label == b).and_then(|(_, mean)| *mean))
+                    .collect();
+                (name.clone(), errors)
             })
             .collect();
         Ok(Chart::FillError { title: title.to_string(), buckets, methods })
@@ -453,11 +450,16 @@ mod tests {
     }
 
     #[test]
-    fn gap_bins_are_powers_of_two() {
+    fn gap_bins_are_the_metrics_bins() {
         let chart = Chart::gap_lengths(&[stats(), stats()], "gaps").unwrap();
         let Chart::GapLengths { bins, .. } = &chart else { panic!() };
-        // Gaps of 1, 3 and 5 frames, twice.
-        assert_eq!(bins, &[("1".into(), 2), ("2".into(), 0), ("3-4".into(), 2), ("5-8".into(), 2)]);
+        // Gaps of 1, 3 and 5 frames, twice: all in the first bin, the only one drawn.
+        assert_eq!(bins, &[("1-10".into(), 6)]);
+        let mut long = stats();
+        long.gap_length_histogram.resize(50, 0);
+        long.gap_length_histogram[45] = 2;
+        let Chart::GapLengths { bins, .. } = Chart::gap_lengths(&[long], "gaps").unwrap() else { panic!() };
+        assert_eq!(bins, [("1-10".into(), 3), ("11-30".into(), 0), ("31-60".into(), 2)]);
         let none = GapStatistics::of_take(
             &Take::from_samples(vec![MarkerName::parse("A")], &[Some(Vec3::zeros())], 1.0).unwrap(),
         );
@@ -494,19 +496,20 @@ mod tests {
     }
 
     #[test]
-    fn fill_error_reads_the_bench_report() {
-        let json = r#"{"takes":["a.c3d"],"seed":1,"hidden_samples":10,"hidden_gaps":2,"methods":[
-            {"method":"edm","scored_samples":10,"unfilled_samples":0,"ompe_mean_mm":5.0,"ompe_common_mm":5.0,
-             "ompe_median_mm":4.0,"ompe_p95_mm":9.0,"seconds":0.1,"frames_per_second":100.0,
-             "by_gap_length":[{"min_frames":1,"max_frames":10,"samples":4,"mean_mm":1.5},
-                              {"min_frames":241,"max_frames":18446744073709551615,"samples":0,"mean_mm":null}]}]}"#;
-        let report: FillBenchReport = serde_json::from_str(json).unwrap();
-        let chart = Chart::fill_error(&report, "fill").unwrap();
+    fn fill_error_lines_up_the_bins_of_every_method() {
+        let methods = vec![
+            ("edm".to_string(), vec![("1-10".to_string(), Some(1.5)), ("241+".to_string(), None)]),
+            ("linear".to_string(), vec![("241+".to_string(), Some(90.0)), ("11-30".to_string(), Some(4.0))]),
+        ];
+        let chart = Chart::fill_error(&methods, "fill").unwrap();
         let Chart::FillError { buckets, methods, .. } = &chart else { panic!() };
-        assert_eq!(buckets, &["1-10".to_string(), "241+".to_string()]);
-        assert_eq!(methods[0], ("edm".to_string(), vec![Some(1.5), None]));
+        assert_eq!(buckets, &["1-10".to_string(), "241+".to_string(), "11-30".to_string()]);
+        assert_eq!(methods[0], ("edm".to_string(), vec![Some(1.5), None, None]));
+        assert_eq!(methods[1], ("linear".to_string(), vec![None, Some(90.0), Some(4.0)]));
         let svg = String::from_utf8(chart.render(Format::Svg, (800, 480)).unwrap()).unwrap();
-        assert!(svg.contains("\nedm\n"), "legend names the method");
+        assert!(svg.contains("\nedm\n") && svg.contains("\nlinear\n"), "legend names the methods");
+        assert!(Chart::fill_error(&[], "x").unwrap_err().to_string().contains("no methods"));
+        assert!(Chart::fill_error(&[("a".into(), vec![])], "x").unwrap_err().to_string().contains("no gap-length"));
     }
 
     #[test]

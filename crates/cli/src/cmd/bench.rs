@@ -4,7 +4,9 @@
 use crate::inputs::{self, read_take};
 use anyhow::{Context, Result, bail};
 use clap::{Parser, Subcommand, ValueEnum};
-use locap_eval::fill_bench::{self, Variant};
+use locap_clean::{FillError, Filled, Filler};
+use locap_core::Take;
+use locap_eval::fill_bench::{self, Candidate, Variant};
 use locap_eval::gap_model::GapModel;
 use locap_eval::label_bench::{self, GhostCount, LabelBenchConfig};
 use locap_eval::unlabel::GhostMode;
@@ -290,31 +292,34 @@ fn fill(args: FillArgs) -> Result<ExitCode> {
         refiners.push((name, refiner));
     }
     let shipped = if !args.no_neural { locap_nn::shipped::refiners(&Default::default())? } else { Vec::new() };
-    let mut methods: Vec<fill_bench::Method> = Variant::all().into_iter().map(|v| v.method(args.neighbours)).collect();
-    for (name, refiner) in &refiners {
-        methods.push(fill_bench::Method {
-            name: name.clone(),
-            fill: Box::new(move |take| refiner.refine(take).map(|f| f.take).map_err(|e| e.to_string())),
-        });
-    }
-    let fits = |take: &locap_core::Take, r: &locap_nn::Refiner| {
-        locap_nn::features::marker_order(take, &r.meta.markers).is_ok()
-    };
+    let fitting = FittingRefiners(&shipped);
+    let variants: Vec<(String, fill_bench::VariantFiller)> =
+        Variant::all().into_iter().map(|v| (v.name(), v.filler(args.neighbours))).collect();
+    let mut methods: Vec<Candidate> =
+        variants.iter().map(|(name, filler)| Candidate { name, filler: filler as &dyn Filler }).collect();
+    methods.extend(refiners.iter().map(|(name, refiner)| Candidate { name, filler: refiner as &dyn Filler }));
     // The shipped refiners are scored only where some take carries their markers.
-    if takes.iter().any(|(_, take)| shipped.iter().any(|r| fits(take, r))) {
-        let shipped = &shipped;
-        methods.push(fill_bench::Method {
-            name: "neural".into(),
-            fill: Box::new(move |take| {
-                let fitting: Vec<&locap_nn::Refiner> = shipped.iter().filter(|r| fits(take, r)).collect();
-                if fitting.is_empty() {
-                    return Err("no shipped refiner was trained on this marker set".into());
-                }
-                locap_nn::refine_all_of(take, &fitting).map(|f| f.take).map_err(|e| e.to_string())
-            }),
-        });
+    if takes.iter().any(|(_, take)| shipped.iter().any(|r| r.fits(take))) {
+        methods.push(Candidate { name: "neural", filler: &fitting });
     }
     eprintln!("filling hidden gaps in {} takes with {} methods...", takes.len(), methods.len());
-    let report = fill_bench::run_methods(&takes, &model, &methods, args.seed);
+    let report = fill_bench::run_candidates(&takes, &model, &methods, args.seed);
     publish(&report.table(), &report, args.json.as_deref())
+}
+
+/// The shipped refiners that carry a take's markers, refined together (scored as `neural`).
+struct FittingRefiners<'a>(&'a [locap_nn::Refiner]);
+
+impl Filler for FittingRefiners<'_> {
+    fn describe(&self) -> String {
+        "shipped refiners".into()
+    }
+
+    fn fill(&self, take: &Take) -> Result<Filled, FillError> {
+        let fitting: Vec<&locap_nn::Refiner> = self.0.iter().filter(|r| r.fits(take)).collect();
+        if fitting.is_empty() {
+            return Err(FillError::new(self, "no shipped refiner was trained on this marker set"));
+        }
+        locap_nn::refine_all_of(take, &fitting).map_err(|e| FillError::new(self, e))
+    }
 }

@@ -7,10 +7,8 @@
 
 use anyhow::{Context, Result};
 use clap::Parser;
+use locap_eval::solver::{MethodScores, MotionComparison, compare_motions, evaluate, gap_bin_labels, table};
 use locap_nn::Refiner;
-use locap_nn::solver::eval::{
-    GAP_BINS, MethodScores, MotionComparison, compare_motions, evaluate, gap_bin_label, table,
-};
 use locap_nn::solver::{Solver, SolverData};
 use locap_view::plot::{Chart, Format};
 use serde::Serialize;
@@ -157,7 +155,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
             frames: data.frames(),
             refiner: args.refiner.as_ref().map(|p| p.display().to_string()),
             joints: joints.clone(),
-            gap_bins: (0..GAP_BINS.len()).map(gap_bin_label).collect(),
+            gap_bins: gap_bin_labels(),
             methods: scores.clone(),
             real,
             region,
@@ -167,7 +165,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
     }
     if let Some(dir) = &args.plots {
         std::fs::create_dir_all(dir).with_context(|| format!("{}: cannot create folder", dir.display()))?;
-        let buckets: Vec<String> = (0..GAP_BINS.len()).map(gap_bin_label).collect();
+        let buckets = gap_bin_labels();
         let mut methods: Vec<(String, Vec<Option<f64>>)> =
             scores.iter().map(|s| (format!("{} JPE", s.name), s.jpe_by_gap_mm.clone())).collect();
         if let Some(first) = scores.first() {

@@ -134,7 +134,8 @@ fn fill(args: FillArgs) -> Result<ExitCode> {
     let report: FillBenchReport = serde_json::from_str(&text)
         .with_context(|| format!("{}: not a report of `locap bench fill --json`", args.report.display()))?;
     let title = format!("Fill error by gap length ({} hidden gaps, seed {})", report.hidden_gaps, report.seed);
-    let chart = Chart::fill_error(&report, &title).with_context(|| format!("{}", args.report.display()))?;
+    let chart = Chart::fill_error(&report.error_by_gap_length(), &title)
+        .with_context(|| format!("{}", args.report.display()))?;
     inputs::create_parent(&args.output)?;
     write_chart(&chart, format, &args.output)?;
     crate::emit(&format!("{}\n", args.output.display()))?;

@@ -85,13 +85,14 @@ pub fn run(args: Args) -> Result<ExitCode> {
             Up::Y => UpAxis::Y,
             Up::Z => UpAxis::Z,
         };
+        let edges = locap_clean::neighbours::stable_edges(&take, args.edges);
         let page = locap_view::render(&ViewInput {
             title: input.file_name().map_or_else(|| input.display().to_string(), |n| n.to_string_lossy().into()),
             take: &take,
             states: &states,
             motion: motion.as_ref().map(|m| (m, up)),
             compare: compare.as_ref().map(|(t, name)| (t, name.clone())),
-            neighbour_edges: args.edges,
+            edges: &edges,
         })
         .with_context(|| format!("{}", input.display()))?;
         locap_io::atomic::write_atomically(&targets[i], |w| Ok(w.write_all(page.as_bytes())?))?;

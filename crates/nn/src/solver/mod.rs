@@ -8,7 +8,8 @@
 //!   truth in the waist frame.
 //! * [`model`]: the versioned model file (`LOCAPSV\0`) and inference on a take.
 //! * [`train`]: Eq. 5 training with the refiner's machinery.
-//! * [`eval`]: the paper's metrics (JOE, JPE, OMPE) on held-out shards.
+//!
+//! The paper's metrics (JOE, JPE, OMPE) on held-out shards are in `locap_eval::solver`.
 //!
 //! Body and hands are solved by separate networks, as in the paper: a body network in the
 //! waist frame, a hand network per hand in its wrist frame (same code, `frame` and link
@@ -16,7 +17,6 @@
 //! body and finger motion, which the data (CMU bodies, ART hands) does not have.
 
 pub mod data;
-pub mod eval;
 pub mod model;
 pub mod net;
 pub mod train;

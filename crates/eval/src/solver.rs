@@ -1,4 +1,4 @@
-//! The metrics of LocalMoCap section 4.2 (Table 1) on held-out shards:
+//! The motion-solver metrics of LocalMoCap section 4.2 (Table 1) on held-out shards:
 //!
 //! * **OMPE**, mm: distance between the cleaned (filled) and the true position of occluded
 //!   marker samples only (samples the shard's corrupted markers lack). It measures the cleaning
@@ -13,33 +13,58 @@
 //! Each take is solved exactly as `locap solve` solves a real one
 //! ([`Solver::solve_cleaned`]): bone offsets averaged over the take, root from the waist
 //! frame, so the figures include the skeleton fit. Besides the means, the evaluation keeps the
-//! error per joint and by gap length (frames binned by the longest gap open in them).
+//! error per joint and by gap length, in the gap-length bins of every locap metric
+//! ([`locap_core::gaps::LENGTH_BINS`], the fill benchmark's) after a first bin for frames with
+//! no gap open: OMPE by the length of the gap a sample is in, JPE by the longest gap open in
+//! the frame.
 
-use super::data::{Cleaned, SolverShard, clean_for_solving};
-use super::model::Solver;
-use crate::NnError;
-use crate::refiner::Refiner;
-use locap_core::gaps::gaps_of;
+use locap_core::gaps::{gaps_of, length_bin};
+use locap_nn::NnError;
+use locap_nn::Refiner;
+use locap_nn::solver::Solver;
+use locap_nn::solver::data::{Cleaned, SolverShard, clean_for_solving};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-/// Upper bounds of the gap-length bins, frames (the last bin is open).
-pub const GAP_BINS: [usize; 7] = [0, 4, 16, 64, 256, 1024, usize::MAX];
+/// Number of gap bins of the per-gap errors: "none", then [`locap_core::gaps::LENGTH_BINS`].
+pub const GAP_BIN_COUNT: usize = 1 + locap_core::gaps::LENGTH_BINS.len();
 
-/// Label of gap bin `i`.
-pub fn gap_bin_label(i: usize) -> String {
-    match i {
-        0 => "none".into(),
-        _ if GAP_BINS[i] == usize::MAX => format!("{}+", GAP_BINS[i - 1] + 1),
-        _ => format!("{}-{}", GAP_BINS[i - 1] + 1, GAP_BINS[i]),
-    }
+/// Labels of the per-gap errors' bins: `none` (no gap open in the frame), then the labels of
+/// [`locap_core::gaps::LENGTH_BINS`].
+pub fn gap_bin_labels() -> Vec<String> {
+    std::iter::once("none".to_string()).chain(locap_core::gaps::length_bin_labels()).collect()
 }
 
 fn gap_bin(len: usize) -> usize {
-    GAP_BINS.iter().position(|&b| len <= b).unwrap_or(GAP_BINS.len() - 1)
+    length_bin(len).map_or(0, |b| b + 1)
 }
 
-/// Running mean.
+/// Why an evaluation could not run.
+#[derive(Debug, thiserror::Error)]
+pub enum SolverEvalError {
+    /// No shards were given.
+    #[error("no evaluation shards")]
+    NoShards,
+    /// A model was trained on another skeleton than the shards'.
+    #[error("{model}: the model's skeleton is not the shards' skeleton")]
+    OtherSkeleton {
+        /// The model's name.
+        model: String,
+    },
+    /// Cleaning or solving a shard failed.
+    #[error("{shard}: {source}")]
+    Solve {
+        /// The shard's name.
+        shard: String,
+        /// What failed.
+        #[source]
+        source: NnError,
+    },
+    /// Two motions compared share no frames or no joint names.
+    #[error("the motions share no frames or no joint names")]
+    NothingInCommon,
+}
+
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
 struct Mean {
     sum: f64,
@@ -75,9 +100,9 @@ pub struct MethodScores {
     pub jpe_per_joint_mm: Vec<f64>,
     /// JOE per joint, degrees (`None` for joints left out).
     pub joe_per_joint_deg: Vec<Option<f64>>,
-    /// JPE by the longest gap open in a frame ([`GAP_BINS`]), mm.
+    /// JPE by the longest gap open in a frame ([`gap_bin_labels`]), mm.
     pub jpe_by_gap_mm: Vec<Option<f64>>,
-    /// OMPE by gap length ([`GAP_BINS`]), mm.
+    /// OMPE by gap length ([`gap_bin_labels`]; the first, "none", is always empty), mm.
     pub ompe_by_gap_mm: Vec<Option<f64>>,
     /// Seconds spent solving (network and skeleton, without cleaning).
     pub solve_seconds: f64,
@@ -97,7 +122,7 @@ impl Acc {
         Acc {
             joe: vec![Mean::default(); joints],
             jpe: vec![Mean::default(); joints],
-            jpe_by_gap: vec![Mean::default(); GAP_BINS.len()],
+            jpe_by_gap: vec![Mean::default(); GAP_BIN_COUNT],
             seconds: 0.0,
         }
     }
@@ -113,7 +138,7 @@ impl Acc {
 fn ompe(shard: &SolverShard, cleaned: &Cleaned) -> (Mean, Vec<Mean>) {
     let (t, m) = (shard.observed.frame_count(), shard.observed.marker_count());
     let mut all = Mean::default();
-    let mut by = vec![Mean::default(); GAP_BINS.len()];
+    let mut by = vec![Mean::default(); GAP_BIN_COUNT];
     for k in 0..m {
         for gap in gaps_of((0..t).map(|f| shard.observed.is_valid(f, k))) {
             for f in gap.start..gap.end() {
@@ -149,19 +174,24 @@ pub fn evaluate(
     solvers: &[(String, &Solver)],
     shards: &[SolverShard],
     refiner: Option<&Refiner>,
-) -> Result<Vec<MethodScores>, NnError> {
-    let Some(first) = shards.first() else { return Err(NnError::Data("no evaluation shards".into())) };
+) -> Result<Vec<MethodScores>, SolverEvalError> {
+    let Some(first) = shards.first() else { return Err(SolverEvalError::NoShards) };
     let j = first.skeleton.len();
     for (name, s) in solvers {
         let names = |sk: &locap_core::Skeleton| sk.joints().iter().map(|jj| jj.name.clone()).collect::<Vec<_>>();
         if shards.iter().any(|sh| names(&sh.skeleton) != names(&s.meta.skeleton)) {
-            return Err(NnError::Data(format!("{name}: the model's skeleton is not the shards' skeleton")));
+            return Err(SolverEvalError::OtherSkeleton { model: name.clone() });
         }
     }
-    let cleaned: Vec<Cleaned> =
-        shards.par_iter().map(|s| clean_for_solving(&s.observed, refiner)).collect::<Result<_, _>>()?;
+    let cleaned: Vec<Cleaned> = shards
+        .par_iter()
+        .map(|s| {
+            clean_for_solving(&s.observed, refiner)
+                .map_err(|source| SolverEvalError::Solve { shard: s.name.clone(), source })
+        })
+        .collect::<Result<_, _>>()?;
     let mut fill_all = Mean::default();
-    let mut fill_by = vec![Mean::default(); GAP_BINS.len()];
+    let mut fill_by = vec![Mean::default(); GAP_BIN_COUNT];
     for (s, c) in shards.iter().zip(&cleaned) {
         let (a, b) = ompe(s, c);
         fill_all.merge(&a);
@@ -194,9 +224,11 @@ pub fn evaluate(
 }
 
 /// One solver on one cleaned shard.
-fn score_take(solver: &Solver, shard: &SolverShard, cleaned: &Cleaned) -> Result<Acc, NnError> {
+fn score_take(solver: &Solver, shard: &SolverShard, cleaned: &Cleaned) -> Result<Acc, SolverEvalError> {
     let started = std::time::Instant::now();
-    let motion = solver.solve_cleaned(cleaned, shard.clean.frame_rate_hz())?;
+    let motion = solver
+        .solve_cleaned(cleaned, shard.clean.frame_rate_hz())
+        .map_err(|source| SolverEvalError::Solve { shard: shard.name.clone(), source })?;
     let j = shard.skeleton.len();
     let mut acc = Acc::new(j);
     acc.seconds = started.elapsed().as_secs_f64();
@@ -270,7 +302,7 @@ pub fn compare_motions(
     solved: &locap_core::Motion,
     reference: &locap_core::Motion,
     rotating: &[bool],
-) -> Result<MotionComparison, NnError> {
+) -> Result<MotionComparison, SolverEvalError> {
     let frames = solved.frame_count().min(reference.frame_count());
     let pairs: Vec<(usize, usize)> = solved
         .skeleton
@@ -280,7 +312,7 @@ pub fn compare_motions(
         .filter_map(|(i, j)| reference.skeleton.index_of(&j.name).map(|r| (i, r)))
         .collect();
     if frames == 0 || pairs.is_empty() {
-        return Err(NnError::Data("the motions share no frames or no joint names".into()));
+        return Err(SolverEvalError::NothingInCommon);
     }
     let mut jpe = vec![Mean::default(); pairs.len()];
     let mut joe = vec![Mean::default(); pairs.len()];
@@ -347,6 +379,13 @@ mod tests {
     }
 
     #[test]
+    fn gap_bins_are_none_then_the_shared_bins() {
+        assert_eq!(gap_bin_labels(), ["none", "1-10", "11-30", "31-60", "61-120", "121-240", "241+"]);
+        assert_eq!(gap_bin_labels().len(), GAP_BIN_COUNT);
+        assert_eq!([gap_bin(0), gap_bin(1), gap_bin(10), gap_bin(11), gap_bin(241), gap_bin(5000)], [0, 1, 1, 2, 6, 6]);
+    }
+
+    #[test]
     fn motions_compare_by_joint_name() {
         let truth = motion(0.0, 0.0, true);
         let same = compare_motions(&motion(0.0, 0.0, false), &truth, &[true, true, true]).unwrap();
@@ -360,5 +399,15 @@ mod tests {
         let ankle = off.per_joint.iter().find(|j| j.0 == "ankle").unwrap();
         assert!((ankle.1 - Vec3::new(30.0, 400.0, 400.0).norm()).abs() < 1e-6, "{ankle:?}");
         assert!((off.jpe_root_aligned_mm - 400.0 * 2f64.sqrt() / 3.0).abs() < 1e-6, "{off:?}");
+        let other = Skeleton::new(vec![Joint {
+            name: "elsewhere".into(),
+            parent: None,
+            offset_mm: Vec3::zeros(),
+            rotation_order: EulerOrder::ZXY,
+            is_end_site: false,
+        }])
+        .unwrap();
+        let other = Motion::new(other, vec![Quat::identity(); 2], vec![Vec3::zeros(); 2], 120.0).unwrap();
+        assert!(matches!(compare_motions(&other, &truth, &[true]), Err(SolverEvalError::NothingInCommon)));
     }
 }
