@@ -111,14 +111,14 @@ pub struct AutoConfig {
     pub weighting: Weighting,
     /// Frames of context on each side of a gap, in seconds (at least the gap's length is used).
     pub context_s: f64,
-    /// Frames of context of the PCA candidate on each side, in seconds: its covariance needs
-    /// more frames than the other candidates' neighbour ranking, and costs only linearly in them.
+    /// Frames of context of the PCA candidate on each side, in seconds: its covariance gains
+    /// from more poses than the other candidates' neighbour ranking does.
     pub pca_context_s: f64,
     /// Frames of its window (besides the gap's own) the PCA candidate sees, evenly spaced.
     pub pca_fit_frames: usize,
-    /// Longest gap (seconds) spline and linear interpolation are candidates for: beyond, a
-    /// cubic through a few frames either side swings hundreds of millimetres off, and a
-    /// trial that happens to favour it costs more than it can win.
+    /// Longest gap (seconds) spline and linear interpolation are candidates for. By default
+    /// every gap: the trials already reject them on long gaps (a limit of a quarter second
+    /// changed no choice on the take the defaults were chosen on).
     pub interpolate_s: f64,
     /// Neighbours of the marker in the sub-takes of EDM, rigid, spline and linear.
     pub markers: usize,
@@ -197,6 +197,32 @@ pub struct AutoFilled {
     /// One entry per gap of a labeled marker that was captured somewhere, in marker then time
     /// order.
     pub choices: Vec<GapChoice>,
+}
+
+impl AutoFilled {
+    /// Gaps and samples filled per leading method (the blend's first), as `(name, gaps,
+    /// samples)` sorted by name, `default` counted apart: the summary of a clean.
+    pub fn by_method(&self) -> Vec<(String, usize, usize)> {
+        let mut counts: std::collections::BTreeMap<String, (usize, usize)> = Default::default();
+        for c in &self.choices {
+            let Some((lead, _)) = c.weights.first() else { continue };
+            let name = if c.trials == 0 { format!("default {}", lead.name()) } else { lead.name().to_string() };
+            let entry = counts.entry(name).or_default();
+            entry.0 += 1;
+            entry.1 += c.filled;
+        }
+        counts.into_iter().map(|(name, (gaps, samples))| (name, gaps, samples)).collect()
+    }
+}
+
+impl crate::Filler for AutoConfig {
+    fn describe(&self) -> String {
+        format!("Auto trials={} blend={}", self.trials, self.blend)
+    }
+
+    fn fill(&self, take: &Take) -> Result<Filled, crate::FillError> {
+        Ok(fill(take, self).filled)
+    }
 }
 
 /// The ranking used for a gap without trial windows: by gap length in seconds, interpolation
@@ -672,9 +698,15 @@ mod tests {
             assert!((c.weights.iter().map(|(_, w)| w).sum::<f64>() - 1.0).abs() < 1e-9);
             assert!(c.best_trial_rmse_mm().unwrap() < 1e-6);
         }
-        // The same through `fill_gaps`.
+        // The same through `fill_gaps` and the `Filler` trait.
         let via = crate::fill_gaps(&holed, &crate::FillConfig { method: FillMethod::Auto, ..Default::default() });
         assert_eq!(via, out.filled);
+        let filler: &dyn crate::Filler = &AutoConfig::default();
+        assert_eq!(filler.fill(&holed).unwrap(), out.filled);
+        assert_eq!(filler.describe(), "Auto trials=3 blend=2");
+        let leads: usize = out.by_method().iter().map(|(_, gaps, _)| gaps).sum();
+        let samples: usize = out.by_method().iter().map(|(_, _, samples)| samples).sum();
+        assert_eq!((leads, samples), (3, 122));
     }
 
     /// An edge gap is filled only where EDM's edge rules reach; unlabeled points not at all.
