@@ -58,9 +58,9 @@
 //!
 //! # Choices made
 //! - Blend of the best two by inverse squared trial RMSE. Blending fills with partly
-//!   independent errors beats either; the best alone and the best three were measured worse,
-//!   and so was the least-squares combination of the candidates' trial errors (Bates & Granger
-//!   1969, [`Weighting::LeastSquares`], kept as an option): it fits the trials, not the gap.
+//!   independent errors beats either: the best alone was measured worse; the best three, and
+//!   the least-squares combination of the candidates' trial errors (Bates & Granger 1969,
+//!   [`Weighting::LeastSquares`], kept as an option), no better.
 //! - Trial windows nearest in time first: the motion near a gap resembles the motion in it
 //!   more than motion elsewhere in the take. Three trials: more cost more and changed little.
 //! - PCA sees a wider window (30 s each side) than the other candidates (2 s): its
