@@ -23,7 +23,9 @@
 //!   MDS (Eq. 2) and align the embedding onto the visible neighbours with Procrustes;
 //! - baselines to measure it against, run on the same gaps: [`FillMethod::Linear`],
 //!   [`FillMethod::Spline`] (cubic), [`FillMethod::Pca`] (Gløersen & Federolf 2016) and
-//!   [`FillMethod::Rigid`] (the rigid-body fill of Vicon and QTM, from 3 neighbours).
+//!   [`FillMethod::Rigid`] (the rigid-body fill of Vicon and QTM, from 3 neighbours);
+//! - [`FillMethod::Auto`] ([`auto`]): per gap, the method or blend of methods that filled
+//!   trial gaps of the same length, hidden where the marker is captured in the same take, best.
 //!
 //! Every method returns a [`Filled`] take with the mask of the samples it computed, so a
 //! writer can mark them and a benchmark can score exactly them. Gaps at the take's start or end
@@ -44,6 +46,7 @@
 //! Nothing here reads files or knows about the command line: every function takes and returns
 //! `locap-core` types, so tests and the benchmark call them directly.
 
+pub mod auto;
 pub mod baseline;
 pub mod edm;
 pub mod filler;
@@ -74,10 +77,14 @@ pub enum FillMethod {
     Pca,
     /// Rigid-body fill from the 3 best neighbours (Vicon / QTM "rigid body" fill).
     Rigid,
+    /// Per gap, the method (or blend) that filled trial gaps of the same length in the same
+    /// take best ([`auto`]).
+    Auto,
 }
 
 impl FillMethod {
-    /// All methods, the paper's first.
+    /// The single methods, the paper's first ([`FillMethod::Auto`] chooses among them and is
+    /// not listed).
     pub const ALL: [FillMethod; 5] =
         [FillMethod::Edm, FillMethod::Linear, FillMethod::Spline, FillMethod::Pca, FillMethod::Rigid];
 
@@ -89,6 +96,7 @@ impl FillMethod {
             FillMethod::Spline => "spline",
             FillMethod::Pca => "pca",
             FillMethod::Rigid => "rigid",
+            FillMethod::Auto => "auto",
         }
     }
 }
@@ -159,6 +167,14 @@ fn fill_with_method(take: &Take, config: &FillConfig) -> Filled {
         FillMethod::Spline => baseline::spline::fill(take),
         FillMethod::Pca => baseline::pca::fill(take, &baseline::pca::PcaConfig::default()),
         FillMethod::Rigid => baseline::rigid::fill(take, config.selection),
+        FillMethod::Auto => {
+            let auto = auto::AutoConfig {
+                edm_neighbours: config.neighbours,
+                selection: config.selection,
+                ..auto::AutoConfig::default()
+            };
+            auto::fill(take, &auto).filled
+        }
     }
 }
 

@@ -67,6 +67,7 @@ use locap_core::{Take, Vec3};
 use nalgebra::{DMatrix, SymmetricEigen};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
+use std::ops::Range;
 
 /// Most frames the marker-to-marker mean distances are averaged over.
 pub const DISTANCE_FRAMES: usize = 10_000;
@@ -115,11 +116,30 @@ pub fn fill(take: &Take, config: &PcaConfig) -> Filled {
         return out;
     }
     let prefill = linear::fill(take).take;
-    let context = Context { take, prefill: &prefill, gapped: &gapped, config };
+    let context = Context { take, prefill: &prefill, gapped: &gapped, config, only: 0..frames };
     for i in (0..markers).filter(|k| seen[*k] && gapped[*k]) {
         let distances = mean_distances(take, i);
-        fill_marker(&context, &distances, i, &mut out);
+        fill_marker_into(&context, &distances, i, &mut out);
     }
+    out
+}
+
+/// Fills the gaps of `marker` alone within frames `only`, exactly as [`fill`] fills them;
+/// every other sample stays as captured. The per-gap fill of [`crate::auto`] needs one gap's
+/// reconstruction, and the cost of [`fill`] grows with the number of gapped markers.
+pub fn fill_marker(take: &Take, marker: usize, only: Range<usize>, config: &PcaConfig) -> Filled {
+    let frames = take.frame_count();
+    let mut out = Filled::unchanged(take);
+    if marker >= take.marker_count() || !(0..frames).any(|f| take.is_valid(f, marker)) {
+        return out;
+    }
+    let gapped: Vec<bool> = (0..take.marker_count()).map(|k| (0..frames).any(|f| !take.is_valid(f, k))).collect();
+    if !gapped[marker] {
+        return out;
+    }
+    let prefill = linear::fill(take).take;
+    let context = Context { take, prefill: &prefill, gapped: &gapped, config, only };
+    fill_marker_into(&context, &mean_distances(take, marker), marker, &mut out);
     out
 }
 
@@ -129,6 +149,8 @@ struct Context<'a> {
     prefill: &'a Take,
     gapped: &'a [bool],
     config: &'a PcaConfig,
+    /// Frames to reconstruct (missing frames outside stay missing).
+    only: Range<usize>,
 }
 
 /// Mean distance from marker `i` to every marker over the frames both are captured (sampled
@@ -152,7 +174,7 @@ fn mean_distances(take: &Take, i: usize) -> Vec<Option<f64>> {
 
 /// Reconstructs the gaps of marker `i` (strategy R2, the overlap rule applied frame by frame)
 /// into `out`.
-fn fill_marker(cx: &Context, distances: &[Option<f64>], i: usize, out: &mut Filled) {
+fn fill_marker_into(cx: &Context, distances: &[Option<f64>], i: usize, out: &mut Filled) {
     let take = cx.take;
     let markers = take.marker_count();
     let known: Vec<f64> = distances.iter().flatten().copied().collect();
@@ -161,7 +183,7 @@ fn fill_marker(cx: &Context, distances: &[Option<f64>], i: usize, out: &mut Fill
     // Frames where `i` is missing, grouped by their predictors: the markers captured there
     // that are gap-free or not distal (any captured marker where that leaves none).
     let mut groups: BTreeMap<Vec<usize>, Vec<usize>> = BTreeMap::new();
-    for f in (0..take.frame_count()).filter(|f| !take.is_valid(*f, i)) {
+    for f in cx.only.clone().filter(|f| *f < take.frame_count() && !take.is_valid(*f, i)) {
         let captured: Vec<usize> = (0..markers).filter(|j| *j != i && take.is_valid(f, *j)).collect();
         let kept: Vec<usize> = captured.iter().copied().filter(|j| !cx.gapped[*j] || near(*j)).collect();
         let mut kept = if kept.is_empty() { captured.clone() } else { kept };

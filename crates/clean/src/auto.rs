@@ -1,0 +1,765 @@
+//! Per-gap choice of the fill method by trial gaps in the same take (issue 15, item 1).
+//!
+//! No single method wins every gap: interpolation is hard to beat over a few frames, the
+//! locality EDM fill (LocalMoCap section 3.1, Eq. 1-2) and the rigid-body fill carry a marker
+//! with its segment over long gaps, and PCA (Gløersen & Federolf 2016) is strong wherever the
+//! whole body moves in a low-dimensional way. Which one wins depends on the marker, the motion
+//! and which neighbours are missing with it, so the choice is made per gap, from the take
+//! itself: no training, any marker set.
+//!
+//! # The method
+//! For every gap of marker `i` over frames `[s, e)`:
+//! 1. *trial gaps*: up to [`AutoConfig::trials`] windows of the same length where `i` *is*
+//!    captured, nearest in time to the real gap first (on both sides, seeded jitter so they
+//!    do not all fall on one motion phase), within [`AutoConfig::search_s`]. Each trial hides
+//!    `i` over its window and also every marker that is missing at the corresponding frame of
+//!    the real gap, so a gap with simultaneous neighbours is tried with the same neighbours
+//!    missing. A window qualifies only where `i` and its borders are captured and each of
+//!    `i`'s [`CHECKED_NEIGHBOURS`] best neighbours that is captured throughout the real gap is
+//!    captured throughout the window as well (the trial must not see a poorer neighbourhood
+//!    than the real gap, nor, by the hiding rule, a richer one);
+//! 2. every candidate ([`FillMethod::Edm`], [`FillMethod::Pca`], [`FillMethod::Rigid`],
+//!    [`FillMethod::Spline`], [`FillMethod::Linear`]) fills each trial; each is scored by its
+//!    RMSE over the hidden samples of `i`, pooled over the trials. A sample a candidate leaves
+//!    missing counts with the error of the reference candidate there (linear inside the take,
+//!    EDM at its edges), the fill it would fall back to;
+//! 3. the real gap is filled with the inverse-squared-RMSE blend of the best
+//!    [`AutoConfig::blend`] candidates (1: the best alone), per frame over the candidates that
+//!    filled that frame (the reference where none did). With no qualifying trial window (a
+//!    short take, a marker almost never captured) a fixed ranking by gap length is used
+//!    instead ([`default_ranking`]), measured once on one take, not per take.
+//!
+//! [`AutoFilled::choices`] records, per gap, the blend, the trial count and every
+//! candidate's trial RMSE, so the clean stage can write which method filled which gap.
+//!
+//! # Cost
+//! Candidates never refill the whole take. Each trial and the real gap are filled on
+//! *sub-takes*: for EDM, rigid, spline and linear, the gap's frames plus
+//! [`AutoConfig::context_s`] (at least the gap's own length) on each side, and only `i` and
+//! its [`AutoConfig::markers`] best neighbours (ranked once over the whole take,
+//! [`crate::neighbours`]); for PCA, up to [`AutoConfig::pca_markers`] markers (all by default),
+//! the gap's frames and [`AutoConfig::pca_fit_frames`] frames spread evenly over
+//! [`AutoConfig::pca_context_s`] on each side (PCA treats frames as independent samples, and
+//! a covariance settles long before every frame is in it), reconstructing `i` alone
+//! ([`crate::baseline::pca::fill_marker`]). So a gap costs a bounded number of small
+//! eigen-decompositions however long the take, instead of one `3M x 3M` PCA per gapped marker
+//! over every frame. Gaps are independent (each reads only the input take) and are filled in
+//! parallel with rayon; the result does not depend on the thread count. The windows make each
+//! candidate a *local* version of its method (EDM's neighbour ranking and PCA's covariance come
+//! from the window); the trials measure exactly the local version that fills the real gap.
+//!
+//! # Edge gaps
+//! A gap touching the take's start or end has one border. Its trials are cut the same way
+//! (the sub-take starts or ends at the trial window), and only the frames EDM fills under its
+//! edge rules ([`crate::edm`], "Edge gaps") are filled: the candidates that may fill them are
+//! EDM, PCA and rigid (spline and linear would hold the border constant, which invents
+//! motion), scored on the frames EDM reached. Frames EDM refuses stay missing: no candidate
+//! is trusted beyond the point where the marker's neighbours stop riding with it.
+//!
+//! # Choices made
+//! - Blend of the best two by inverse squared trial RMSE. Blending fills with partly
+//!   independent errors beats either: the best alone was measured worse; the best three, and
+//!   the least-squares combination of the candidates' trial errors (Bates & Granger 1969,
+//!   [`Weighting::LeastSquares`], kept as an option), no better.
+//! - Trial windows nearest in time first: the motion near a gap resembles the motion in it
+//!   more than motion elsewhere in the take. Three trials: more cost more and changed little.
+//! - PCA sees a wider window (30 s each side) than the other candidates (2 s): its
+//!   covariance gains from more poses, EDM's ranking and the interpolations do not.
+//! - Every constant of [`AutoConfig::default`] and [`default_ranking`] was chosen on one take,
+//!   CMU 85_12, with protocol seeds other than the one reported; the other shared takes (CMU
+//!   85_02, 135_02, HDM05) are held out (`examples/auto_fill.rs`, `tests/auto_real.rs`).
+//! - Unlabeled points (`*N`) are not filled, as in [`crate::fill_gaps`].
+
+use crate::neighbours::{self, Selection};
+use crate::{FillMethod, Filled, baseline, edm};
+use locap_core::gaps::{Gap, gaps_of};
+use locap_core::{Take, Vec3};
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+use std::ops::Range;
+
+/// How many of a marker's best neighbours must be as visible in a trial window as in the
+/// real gap for the window to qualify.
+pub const CHECKED_NEIGHBOURS: usize = 3;
+
+/// The candidates, in the order ties are broken.
+pub const CANDIDATES: [FillMethod; 5] =
+    [FillMethod::Edm, FillMethod::Pca, FillMethod::Rigid, FillMethod::Spline, FillMethod::Linear];
+
+/// Smallest RMSE (mm) used for a blend weight: a trial filled exactly does not take all the
+/// weight on the strength of a few samples.
+const RMSE_FLOOR_MM: f64 = 0.5;
+
+/// How the blended candidates are weighted.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Weighting {
+    /// `1 / RMSE^2` of each candidate's trials.
+    InverseSquare,
+    /// The combination with the least squared error on the trials (non-negative, summing to 1).
+    LeastSquares,
+}
+
+/// Settings of [`fill`].
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct AutoConfig {
+    /// Most trial gaps per real gap.
+    pub trials: usize,
+    /// How many of the best candidates are blended (1: the best alone).
+    pub blend: usize,
+    /// How they are weighted.
+    pub weighting: Weighting,
+    /// Frames of context on each side of a gap, in seconds (at least the gap's length is used).
+    pub context_s: f64,
+    /// Frames of context of the PCA candidate on each side, in seconds: its covariance gains
+    /// from more poses than the other candidates' neighbour ranking does.
+    pub pca_context_s: f64,
+    /// Frames of its window (besides the gap's own) the PCA candidate sees, evenly spaced.
+    pub pca_fit_frames: usize,
+    /// Longest gap (seconds) spline and linear interpolation are candidates for. By default
+    /// every gap: the trials already reject them on long gaps (a limit of a quarter second
+    /// changed no choice on the take the defaults were chosen on).
+    pub interpolate_s: f64,
+    /// Neighbours of the marker in the sub-takes of EDM, rigid, spline and linear.
+    pub markers: usize,
+    /// Most markers (the gap's marker included) the PCA candidate sees, nearest first
+    /// (`usize::MAX`: all).
+    pub pca_markers: usize,
+    /// EDM's neighbour count `K`.
+    pub edm_neighbours: usize,
+    /// How neighbours are ranked (EDM, rigid and the sub-takes' marker choice).
+    pub selection: Selection,
+    /// Farthest a trial window may lie from the real gap, in seconds.
+    pub search_s: f64,
+    /// Seed of the trial windows' jitter.
+    pub seed: u64,
+}
+
+impl Default for AutoConfig {
+    fn default() -> AutoConfig {
+        AutoConfig {
+            trials: 3,
+            blend: 2,
+            weighting: Weighting::InverseSquare,
+            context_s: 2.0,
+            pca_context_s: 30.0,
+            pca_fit_frames: 500,
+            interpolate_s: 100.0,
+            markers: 10,
+            pca_markers: usize::MAX,
+            edm_neighbours: 6,
+            selection: Selection::Variance,
+            search_s: 60.0,
+            seed: 15,
+        }
+    }
+}
+
+/// How one gap was filled.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct GapChoice {
+    /// Marker index in the take.
+    pub marker: usize,
+    /// The gap's frames.
+    pub frames: Range<usize>,
+    /// The blended candidates and their weights (summing to 1), best first.
+    pub weights: Vec<(FillMethod, f64)>,
+    /// Trial gaps used (0: the default ranking chose).
+    pub trials: usize,
+    /// Each candidate's trial RMSE in mm, best first (empty without trials).
+    pub trial_rmse_mm: Vec<(FillMethod, f64)>,
+    /// Samples of the gap that were filled.
+    pub filled: usize,
+}
+
+impl GapChoice {
+    /// The method as written in provenance: `edm`, or `edm 0.62 + pca 0.38`; `default:`
+    /// in front when no trial gap was found.
+    pub fn method(&self) -> String {
+        let body = match self.weights.as_slice() {
+            [(m, _)] => m.name().to_string(),
+            many => many.iter().map(|(m, w)| format!("{} {w:.2}", m.name())).collect::<Vec<_>>().join(" + "),
+        };
+        if self.trials == 0 { format!("default: {body}") } else { body }
+    }
+
+    /// The best candidate's trial RMSE in mm, if there were trials.
+    pub fn best_trial_rmse_mm(&self) -> Option<f64> {
+        self.trial_rmse_mm.first().map(|(_, e)| *e)
+    }
+}
+
+/// A take filled by [`fill`], with the choice made for every gap.
+#[derive(Debug, Clone, PartialEq)]
+pub struct AutoFilled {
+    /// The filled take.
+    pub filled: Filled,
+    /// One entry per gap of a labeled marker that was captured somewhere, in marker then time
+    /// order.
+    pub choices: Vec<GapChoice>,
+}
+
+impl AutoFilled {
+    /// Gaps and samples filled per leading method (the blend's first), as `(name, gaps,
+    /// samples)` sorted by name, `default` counted apart: the summary of a clean.
+    pub fn by_method(&self) -> Vec<(String, usize, usize)> {
+        let mut counts: std::collections::BTreeMap<String, (usize, usize)> = Default::default();
+        for c in &self.choices {
+            let Some((lead, _)) = c.weights.first() else { continue };
+            let name = if c.trials == 0 { format!("default {}", lead.name()) } else { lead.name().to_string() };
+            let entry = counts.entry(name).or_default();
+            entry.0 += 1;
+            entry.1 += c.filled;
+        }
+        counts.into_iter().map(|(name, (gaps, samples))| (name, gaps, samples)).collect()
+    }
+}
+
+impl crate::Filler for AutoConfig {
+    fn describe(&self) -> String {
+        format!("Auto trials={} blend={}", self.trials, self.blend)
+    }
+
+    fn fill(&self, take: &Take) -> Result<Filled, crate::FillError> {
+        Ok(fill(take, self).filled)
+    }
+}
+
+/// The ranking used for a gap without trial windows: by gap length in seconds, interpolation
+/// for short gaps, the segment-carrying methods for long ones. Edge gaps use the
+/// segment-carrying part alone.
+pub fn default_ranking(gap_s: f64, edge: bool) -> &'static [FillMethod] {
+    if edge {
+        &[FillMethod::Edm, FillMethod::Rigid, FillMethod::Pca]
+    } else if gap_s <= 0.5 {
+        &[FillMethod::Rigid, FillMethod::Edm, FillMethod::Pca, FillMethod::Spline, FillMethod::Linear]
+    } else {
+        &[FillMethod::Pca, FillMethod::Rigid, FillMethod::Edm, FillMethod::Spline, FillMethod::Linear]
+    }
+}
+
+/// Fills every gap of every labeled marker of `take`, each with the candidate (or blend) that
+/// filled trial gaps of the same length best.
+pub fn fill(take: &Take, config: &AutoConfig) -> AutoFilled {
+    let m = take.marker_count();
+    let frames = take.frame_count();
+    let cx = Context {
+        take,
+        config,
+        ranked: neighbours::rank_scored(take, config.selection),
+        nearest: if config.pca_markers < m { neighbours::rank(take, Selection::MeanDistance) } else { Vec::new() },
+        context: ((config.context_s * take.frame_rate_hz()).round() as usize).max(1),
+        pca_context: ((config.pca_context_s * take.frame_rate_hz()).round() as usize).max(1),
+        search: (config.search_s * take.frame_rate_hz()).round() as usize,
+    };
+    let work: Vec<(usize, Gap)> = (0..m)
+        .filter(|i| !take.markers()[*i].is_unlabeled())
+        .filter(|i| (0..frames).any(|f| take.is_valid(f, *i)))
+        .flat_map(|i| gaps_of((0..frames).map(|f| take.is_valid(f, i))).into_iter().map(move |g| (i, g)))
+        .collect();
+    let results: Vec<(GapChoice, Vec<(usize, Vec3)>)> = work.par_iter().map(|(i, g)| cx.fill_gap(*i, *g)).collect();
+    let mut out = Filled::unchanged(take);
+    let mut choices = Vec::with_capacity(results.len());
+    for (mut choice, samples) in results {
+        choice.filled = 0;
+        for (f, p) in samples {
+            if out.take.set_position_mm(f, choice.marker, Some(p)).is_ok() {
+                out.filled[f * m + choice.marker] = true;
+                choice.filled += 1;
+            }
+        }
+        choices.push(choice);
+    }
+    AutoFilled { filled: out, choices }
+}
+
+/// Which border a gap lacks.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Edge {
+    Inside,
+    Start,
+    End,
+}
+
+/// What every gap's fill shares.
+struct Context<'a> {
+    take: &'a Take,
+    config: &'a AutoConfig,
+    /// Neighbour ranking of every marker over the whole take, with distance variances.
+    ranked: Vec<Vec<(usize, f64)>>,
+    /// Markers nearest first (empty when PCA sees every marker).
+    nearest: Vec<Vec<usize>>,
+    /// Context frames each side of a gap (before the gap's own length is taken into account).
+    context: usize,
+    /// The same for the PCA candidate.
+    pca_context: usize,
+    /// Farthest trial offset in frames.
+    search: usize,
+}
+
+/// A sub-take and the take's frames it holds.
+struct Window {
+    take: Take,
+    /// `frames[k]` is the take's frame at the sub-take's frame `k`.
+    frames: Vec<usize>,
+}
+
+/// The sub-takes one fill of a frame range runs on: for the local candidates and for PCA.
+struct Windows {
+    local: Option<Window>,
+    wide: Option<Window>,
+    /// The frames filled, in the take.
+    range: Range<usize>,
+}
+
+impl Context<'_> {
+    /// Fills one gap of `marker`: the choice and the samples `(frame, position)`.
+    fn fill_gap(&self, marker: usize, gap: Gap) -> (GapChoice, Vec<(usize, Vec3)>) {
+        let frames = self.take.frame_count();
+        let edge = match (gap.start == 0, gap.end() == frames) {
+            (true, true) => Edge::Inside, // never visible: excluded before
+            (true, false) => Edge::Start,
+            (false, true) => Edge::End,
+            (false, false) => Edge::Inside,
+        };
+        let local = self.local_markers(marker);
+        let wide = self.pca_markers(marker);
+        let interpolates = gap.len as f64 <= self.config.interpolate_s * self.take.frame_rate_hz();
+        let candidates: &[FillMethod] =
+            if edge == Edge::Inside && interpolates { &CANDIDATES } else { &CANDIDATES[..3] };
+        let reference = if edge == Edge::Inside { FillMethod::Linear } else { FillMethod::Edm };
+        // Error vectors per candidate over the trials' hidden samples.
+        let mut errors: Vec<Vec<Vec3>> = vec![Vec::new(); candidates.len()];
+        let starts = self.trial_starts(marker, gap, edge);
+        for &start in &starts {
+            let offset = start as isize - gap.start as isize;
+            let hidden = |f: usize, j: usize| {
+                (start..start + gap.len).contains(&f)
+                    && (j == marker || !self.take.is_valid((f as isize - offset) as usize, j))
+            };
+            let range = start..start + gap.len;
+            let windows = self.windows(range.clone(), edge, &local, &wide, &hidden);
+            let fills: Vec<Vec<Option<Vec3>>> = candidates.iter().map(|c| self.candidate(*c, &windows)).collect();
+            let reference = match candidates.iter().position(|c| *c == reference) {
+                Some(r) => fills[r].clone(),
+                None => self.candidate(reference, &windows),
+            };
+            for (k, f) in range.clone().enumerate() {
+                let Some(truth) = self.take.position_mm(f, marker) else { continue };
+                let Some(reference) = reference[k] else { continue };
+                for (c, fill) in fills.iter().enumerate() {
+                    errors[c].push(fill[k].unwrap_or(reference) - truth);
+                }
+            }
+        }
+        let mut scores: Vec<(FillMethod, f64)> = candidates
+            .iter()
+            .zip(&errors)
+            .filter(|(_, e)| !e.is_empty())
+            .map(|(c, e)| (*c, (e.iter().map(|v| v.norm_squared()).sum::<f64>() / e.len() as f64).sqrt()))
+            .collect();
+        scores.sort_by(|a, b| a.1.total_cmp(&b.1));
+        let trials = if scores.is_empty() { 0 } else { starts.len() };
+        let ranking: Vec<FillMethod> = if scores.is_empty() {
+            default_ranking(gap.len as f64 / self.take.frame_rate_hz(), edge != Edge::Inside).to_vec()
+        } else {
+            scores.iter().map(|(c, _)| *c).collect()
+        };
+        let chosen: Vec<FillMethod> = ranking.iter().copied().take(self.config.blend.max(1)).collect();
+        let weights: Vec<f64> = if scores.is_empty() {
+            // The default ranking has no errors: equal weights.
+            vec![1.0; chosen.len()]
+        } else {
+            let rmse: Vec<f64> =
+                chosen.iter().map(|c| scores.iter().find(|(s, _)| s == c).map_or(0.0, |s| s.1)).collect();
+            match self.config.weighting {
+                Weighting::InverseSquare => rmse.iter().map(|e| 1.0 / e.max(RMSE_FLOOR_MM).powi(2)).collect(),
+                Weighting::LeastSquares => {
+                    let errs: Vec<&[Vec3]> = chosen
+                        .iter()
+                        .map(|c| errors[candidates.iter().position(|x| x == c).unwrap_or(0)].as_slice())
+                        .collect();
+                    combination_weights(&errs)
+                }
+            }
+        };
+        let weight = |c: FillMethod| -> f64 { chosen.iter().position(|x| *x == c).map_or(0.0, |k| weights[k]) };
+        let range = gap.start..gap.end();
+        let none = |_: usize, _: usize| false;
+        let windows = self.windows(range.clone(), edge, &local, &wide, &none);
+        let run = |c: FillMethod| self.candidate(c, &windows);
+        let fills: Vec<Vec<Option<Vec3>>> = chosen.iter().map(|c| run(*c)).collect();
+        // The fallback where no chosen candidate filled a frame, and at edges the support.
+        let fallback: Option<Vec<Option<Vec3>>> = match chosen.iter().position(|c| *c == reference) {
+            Some(k) => Some(fills[k].clone()),
+            None => Some(run(reference)),
+        };
+        let mut samples = Vec::with_capacity(gap.len);
+        for (k, f) in range.clone().enumerate() {
+            let support = fallback.as_ref().and_then(|fb| fb[k]);
+            if edge != Edge::Inside && support.is_none() {
+                continue;
+            }
+            let mut sum = Vec3::zeros();
+            let mut total = 0.0;
+            for (c, fill) in chosen.iter().zip(&fills) {
+                if let Some(p) = fill[k] {
+                    let w = weight(*c);
+                    sum += p * w;
+                    total += w;
+                }
+            }
+            let p = if total > 0.0 { Some(sum / total) } else { support };
+            if let Some(p) = p.filter(|p| p.iter().all(|v| v.is_finite())) {
+                samples.push((f, p));
+            }
+        }
+        let total: f64 = weights.iter().sum();
+        let choice = GapChoice {
+            marker,
+            frames: range,
+            weights: chosen.iter().zip(&weights).filter(|(_, w)| **w > 0.0).map(|(c, w)| (*c, w / total)).collect(),
+            trials,
+            trial_rmse_mm: scores,
+            filled: samples.len(),
+        };
+        (choice, samples)
+    }
+
+    /// `marker` and its best neighbours (finite variance only), marker first.
+    fn local_markers(&self, marker: usize) -> Vec<usize> {
+        let mut list = vec![marker];
+        list.extend(
+            self.ranked[marker].iter().filter(|(_, v)| v.is_finite()).map(|(j, _)| *j).take(self.config.markers),
+        );
+        list
+    }
+
+    /// `marker` and the markers PCA sees, marker first.
+    fn pca_markers(&self, marker: usize) -> Vec<usize> {
+        let mut list = vec![marker];
+        if self.nearest.is_empty() {
+            list.extend((0..self.take.marker_count()).filter(|j| *j != marker));
+        } else {
+            list.extend(self.nearest[marker].iter().copied().take(self.config.pca_markers.saturating_sub(1)));
+        }
+        list
+    }
+
+    /// Starts of the trial windows for `gap` of `marker`, nearest first.
+    fn trial_starts(&self, marker: usize, gap: Gap, edge: Edge) -> Vec<usize> {
+        let take = self.take;
+        let frames = take.frame_count();
+        let len = gap.len;
+        if self.config.trials == 0 || len + 2 > frames {
+            return Vec::new();
+        }
+        // Frames that must be captured around a window starting at `s`: the window and its
+        // borders (one border at the take's edges, as in the real gap).
+        let span = |s: usize| -> Range<usize> {
+            match edge {
+                Edge::Inside => s.saturating_sub(1)..s + len + 1,
+                Edge::Start => s..s + len + 1,
+                Edge::End => s.saturating_sub(1)..s + len,
+            }
+        };
+        let real = span(gap.start);
+        let real = real.start.min(frames)..real.end.min(frames);
+        let checked: Vec<usize> = self.ranked[marker]
+            .iter()
+            .filter(|(_, v)| v.is_finite())
+            .map(|(j, _)| *j)
+            .take(CHECKED_NEIGHBOURS)
+            .filter(|j| real.clone().all(|f| take.is_valid(f, *j)))
+            .collect();
+        let fits = |s: usize| -> bool {
+            let r = span(s);
+            if s == 0 && edge == Edge::Inside || r.end > frames || s + len > frames {
+                return false;
+            }
+            r.clone().all(|f| take.is_valid(f, marker))
+                && checked.iter().all(|j| r.clone().all(|f| take.is_valid(f, *j)))
+        };
+        let step = 2 * len + 2;
+        let mut offsets: Vec<isize> = Vec::new();
+        for k in 1..=self.search.div_ceil(step).min(4000) {
+            let jitter = (splitmix(self.config.seed ^ ((marker as u64) << 40) ^ ((gap.start as u64) << 8) ^ k as u64)
+                % (len as u64 / 2 + 1)) as isize;
+            let d = (k * step) as isize + jitter;
+            offsets.push(d);
+            offsets.push(-d);
+        }
+        offsets.sort_by_key(|d| (d.unsigned_abs(), *d < 0));
+        let mut starts: Vec<usize> = Vec::new();
+        for d in offsets {
+            if starts.len() >= self.config.trials {
+                break;
+            }
+            let s = gap.start as isize + d;
+            if s < 0 {
+                continue;
+            }
+            let s = s as usize;
+            if fits(s) && starts.iter().all(|o| s + len + 2 <= *o || *o + len + 2 <= s) {
+                starts.push(s);
+            }
+        }
+        starts
+    }
+
+    /// The sub-takes of a fill of frames `range` (the real gap or a trial), with
+    /// `hidden(frame, marker)` samples removed.
+    fn windows(
+        &self,
+        range: Range<usize>,
+        edge: Edge,
+        local: &[usize],
+        wide: &[usize],
+        hidden: &dyn Fn(usize, usize) -> bool,
+    ) -> Windows {
+        let frames = self.take.frame_count();
+        // At an edge the sub-take ends where the take does, relative to `range`, so a trial has
+        // one border as the real gap has.
+        let span = |context: usize| -> Range<usize> {
+            let context = context.max(range.len());
+            let first = if edge == Edge::Start { range.start } else { range.start.saturating_sub(context) };
+            let last = if edge == Edge::End { range.end } else { (range.end + context).min(frames) };
+            first..last
+        };
+        let local_frames: Vec<usize> = span(self.context).collect();
+        // PCA treats frames as independent samples: the gap's frames and an even sample of
+        // the rest of its window are all its covariance needs.
+        let around = span(self.pca_context);
+        let others = around.len() - range.len();
+        let stride = others.div_ceil(self.config.pca_fit_frames.max(1)).max(1);
+        let mut wide_frames: Vec<usize> = around.clone().filter(|f| !range.contains(f)).step_by(stride).collect();
+        wide_frames.extend(range.clone());
+        wide_frames.sort_unstable();
+        Windows { local: self.window(local_frames, local, hidden), wide: self.window(wide_frames, wide, hidden), range }
+    }
+
+    /// Candidate `method`'s fill of the windows' marker over their frames `range`.
+    fn candidate(&self, method: FillMethod, windows: &Windows) -> Vec<Option<Vec3>> {
+        let range = windows.range.clone();
+        let window = if method == FillMethod::Pca { &windows.wide } else { &windows.local };
+        let Some(window) = window else { return vec![None; range.len()] };
+        let Ok(first) = window.frames.binary_search(&range.start) else { return vec![None; range.len()] };
+        let config = self.config;
+        let filled = match method {
+            FillMethod::Edm => edm::fill(&window.take, config.edm_neighbours, config.selection),
+            FillMethod::Pca => {
+                let config = baseline::pca::PcaConfig::default();
+                baseline::pca::fill_marker(&window.take, 0, first..first + range.len(), &config)
+            }
+            FillMethod::Rigid => baseline::rigid::fill(&window.take, config.selection),
+            FillMethod::Spline => baseline::spline::fill(&window.take),
+            FillMethod::Linear => baseline::linear::fill(&window.take),
+            // Not a candidate: the per-gap choice does not recurse.
+            FillMethod::Auto => return vec![None; range.len()],
+        };
+        let m = window.take.marker_count();
+        // The range's frames are consecutive in every window.
+        (first..first + range.len())
+            .map(|k| if filled.filled[k * m] { filled.take.position_mm(k, 0) } else { None })
+            .collect()
+    }
+
+    /// The sub-take of `markers` (the gap's marker first) at `frames` (increasing), with
+    /// `hidden` samples removed.
+    fn window(&self, frames: Vec<usize>, markers: &[usize], hidden: &dyn Fn(usize, usize) -> bool) -> Option<Window> {
+        let take = self.take;
+        let names = markers.iter().map(|j| take.markers()[*j].clone()).collect();
+        let mut samples = Vec::with_capacity(frames.len() * markers.len());
+        for f in &frames {
+            for j in markers {
+                samples.push(if hidden(*f, *j) { None } else { take.position_mm(*f, *j) });
+            }
+        }
+        let sub = Take::from_samples(names, &samples, take.frame_rate_hz()).ok()?;
+        Some(Window { take: sub, frames })
+    }
+}
+
+/// Weights summing to 1, none negative, that minimise the squared error of the combination
+/// of fills whose trial errors are `errors` (one vector per fill, same samples): the optimal
+/// forecast combination of Bates & Granger (1969), `w = G^-1 1 / (1^T G^-1 1)` with `G` the
+/// Gram matrix of the errors, a small ridge for fills whose errors are nearly equal, and the
+/// most negative weight dropped until none is.
+fn combination_weights(errors: &[&[Vec3]]) -> Vec<f64> {
+    let n = errors.len();
+    let mut active: Vec<usize> = (0..n).collect();
+    let gram = nalgebra::DMatrix::from_fn(n, n, |a, b| {
+        errors[a].iter().zip(errors[b]).map(|(x, y)| x.dot(y)).sum::<f64>() / errors[a].len().max(1) as f64
+    });
+    loop {
+        let k = active.len();
+        if k <= 1 {
+            let mut w = vec![0.0; n];
+            if let Some(a) = active.first() {
+                w[*a] = 1.0;
+            }
+            return w;
+        }
+        let ridge =
+            RIDGE * (0..k).map(|i| gram[(active[i], active[i])]).sum::<f64>() / k as f64 + RMSE_FLOOR_MM.powi(2);
+        let g =
+            nalgebra::DMatrix::from_fn(k, k, |a, b| gram[(active[a], active[b])] + if a == b { ridge } else { 0.0 });
+        let Some(inv) = g.try_inverse() else {
+            active.pop();
+            continue;
+        };
+        let raw: Vec<f64> = (0..k).map(|a| inv.row(a).sum()).collect();
+        let total: f64 = raw.iter().sum();
+        if total.abs() < f64::EPSILON || !total.is_finite() {
+            active.pop();
+            continue;
+        }
+        let w: Vec<f64> = raw.iter().map(|r| r / total).collect();
+        match (0..k).filter(|a| w[*a] < 0.0).min_by(|a, b| w[*a].total_cmp(&w[*b])) {
+            Some(worst) => {
+                active.remove(worst);
+            }
+            None => {
+                let mut out = vec![0.0; n];
+                for (a, wa) in active.iter().zip(w) {
+                    out[*a] = wa;
+                }
+                return out;
+            }
+        }
+    }
+}
+
+/// Ridge added to the error Gram matrix, as a fraction of its mean diagonal.
+const RIDGE: f64 = 0.05;
+
+/// SplitMix64: a well-mixed 64-bit hash of `x`, for the seeded jitter.
+fn splitmix(x: u64) -> u64 {
+    let mut z = x.wrapping_add(0x9E37_79B9_7F4A_7C15);
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^ (z >> 31)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use locap_core::MarkerName;
+
+    /// Marker 0 rides a rigid cluster with markers 1-5 that moves and turns; names from `name`.
+    fn cluster(frames: usize, name: impl Fn(usize) -> String) -> Take {
+        let offsets = [
+            Vec3::new(0.0, 0.0, 0.0),
+            Vec3::new(120.0, 10.0, 0.0),
+            Vec3::new(0.0, 90.0, 30.0),
+            Vec3::new(40.0, 40.0, 110.0),
+            Vec3::new(-70.0, 20.0, 50.0),
+            Vec3::new(30.0, -80.0, 20.0),
+        ];
+        let names = (0..offsets.len()).map(|i| MarkerName::parse(&name(i))).collect();
+        let mut samples = Vec::new();
+        for f in 0..frames {
+            let a = f as f64 * 0.03;
+            let rot = nalgebra::Rotation3::from_euler_angles(0.3 * a, a, 0.5 * a.sin());
+            let base = Vec3::new(5.0 * f as f64, 100.0 * a.cos(), 900.0);
+            samples.extend(offsets.iter().map(|o| Some(base + rot * o)));
+        }
+        Take::from_samples(names, &samples, 120.0).unwrap()
+    }
+
+    fn hide(take: &mut Take, marker: usize, frames: Range<usize>) {
+        for f in frames {
+            take.set_position_mm(f, marker, None).unwrap();
+        }
+    }
+
+    /// On a rigid cluster EDM and rigid are exact and win every trial; their blend is exact
+    /// too, and every gap is recorded with its trials.
+    #[test]
+    fn rigid_motion_is_filled_exactly_and_every_gap_is_recorded() {
+        let truth = cluster(900, |i| format!("M{i}"));
+        let mut holed = truth.clone();
+        hide(&mut holed, 0, 300..360);
+        hide(&mut holed, 0, 600..612);
+        hide(&mut holed, 2, 450..500);
+        let out = fill(&holed, &AutoConfig::default());
+        assert_eq!(out.filled.filled_count(), 60 + 12 + 50);
+        for (m, f) in (300..360).map(|f| (0, f)).chain((600..612).map(|f| (0, f))).chain((450..500).map(|f| (2, f))) {
+            let (a, b) = (out.filled.take.position_mm(f, m).unwrap(), truth.position_mm(f, m).unwrap());
+            assert!((a - b).norm() < 1e-6, "marker {m} frame {f}: {a:?} vs {b:?}");
+        }
+        let recorded: Vec<(usize, Range<usize>)> = out.choices.iter().map(|c| (c.marker, c.frames.clone())).collect();
+        assert_eq!(recorded, vec![(0, 300..360), (0, 600..612), (2, 450..500)]);
+        for c in &out.choices {
+            assert_eq!(c.trials, AutoConfig::default().trials);
+            assert_eq!(c.filled, c.frames.len());
+            let methods: Vec<FillMethod> = c.weights.iter().map(|(m, _)| *m).collect();
+            assert!(methods.iter().all(|m| matches!(m, FillMethod::Edm | FillMethod::Rigid)), "{}", c.method());
+            assert!((c.weights.iter().map(|(_, w)| w).sum::<f64>() - 1.0).abs() < 1e-9);
+            assert!(c.best_trial_rmse_mm().unwrap() < 1e-6);
+        }
+        // The same through `fill_gaps` and the `Filler` trait.
+        let via = crate::fill_gaps(&holed, &crate::FillConfig { method: FillMethod::Auto, ..Default::default() });
+        assert_eq!(via, out.filled);
+        let filler: &dyn crate::Filler = &AutoConfig::default();
+        assert_eq!(filler.fill(&holed).unwrap(), out.filled);
+        assert_eq!(filler.describe(), "Auto trials=3 blend=2");
+        let leads: usize = out.by_method().iter().map(|(_, gaps, _)| gaps).sum();
+        let samples: usize = out.by_method().iter().map(|(_, _, samples)| samples).sum();
+        assert_eq!((leads, samples), (3, 122));
+    }
+
+    /// An edge gap is filled only where EDM's edge rules reach; unlabeled points not at all.
+    #[test]
+    fn edge_gaps_go_no_further_than_edm_and_unlabeled_points_stay() {
+        let truth = cluster(600, |i| if i == 5 { "*5".into() } else { format!("M{i}") });
+        let mut holed = truth.clone();
+        hide(&mut holed, 0, 520..600);
+        hide(&mut holed, 1, 0..40);
+        hide(&mut holed, 5, 100..120);
+        // Marker 1 drifts off the cluster at the end: the end gap of marker 0 must stop.
+        for f in 560..600 {
+            let p = holed.position_mm(f, 1).unwrap() + Vec3::new((f - 559) as f64 * 2.0, 0.0, 0.0);
+            holed.set_position_mm(f, 1, Some(p)).unwrap();
+        }
+        let edm = edm::fill(&holed, 6, Selection::Variance);
+        let out = fill(&holed, &AutoConfig::default());
+        for f in 0..600 {
+            for m in 0..2 {
+                if out.filled.filled[f * 6 + m] {
+                    assert!(edm.filled[f * 6 + m], "frame {f} marker {m} filled beyond EDM");
+                }
+            }
+        }
+        assert!((0..40).all(|f| out.filled.take.is_valid(f, 1)), "the start gap is carried by the cluster");
+        let reached = (520..600).filter(|f| out.filled.take.is_valid(*f, 0)).count();
+        assert!((30..80).contains(&reached), "end gap: {reached} of 80 frames filled");
+        assert!((100..120).all(|f| !out.filled.take.is_valid(f, 5)));
+        assert!(out.choices.iter().all(|c| c.marker != 5));
+    }
+
+    #[test]
+    fn without_trial_windows_the_default_ranking_fills() {
+        let truth = cluster(70, |i| format!("M{i}"));
+        let mut holed = truth.clone();
+        hide(&mut holed, 0, 10..60);
+        let out = fill(&holed, &AutoConfig::default());
+        let [choice] = out.choices.as_slice() else { panic!("{:?}", out.choices) };
+        assert_eq!(choice.trials, 0);
+        assert!(choice.trial_rmse_mm.is_empty());
+        assert!(choice.method().starts_with("default: "), "{}", choice.method());
+        assert_eq!(choice.filled, 50);
+    }
+
+    #[test]
+    fn combination_weights_favour_the_smaller_independent_error() {
+        let a: Vec<Vec3> = (0..200).map(|k| Vec3::new(if k % 2 == 0 { 10.0 } else { -10.0 }, 0.0, 0.0)).collect();
+        let b: Vec<Vec3> = (0..200).map(|k| Vec3::new(0.0, if k % 3 == 0 { 20.0 } else { -10.0 }, 0.0)).collect();
+        let w = combination_weights(&[&a, &b]);
+        assert!((w[0] + w[1] - 1.0).abs() < 1e-12);
+        assert!(w[0] > w[1] && w[1] > 0.0, "{w:?}");
+        // A fill whose error is a larger copy of another's gets no (negative) weight.
+        let c: Vec<Vec3> = a.iter().map(|e| e * 3.0).collect();
+        assert_eq!(combination_weights(&[&a, &c]), vec![1.0, 0.0]);
+    }
+}
