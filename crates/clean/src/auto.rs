@@ -135,6 +135,14 @@ pub struct AutoConfig {
     pub seed: u64,
 }
 
+impl AutoConfig {
+    /// The defaults with `fill`'s EDM neighbour count and ranking (what
+    /// `FillConfig { method: FillMethod::Auto, .. }` runs).
+    pub fn from_fill(fill: &crate::FillConfig) -> AutoConfig {
+        AutoConfig { edm_neighbours: fill.neighbours, selection: fill.selection, ..AutoConfig::default() }
+    }
+}
+
 impl Default for AutoConfig {
     fn default() -> AutoConfig {
         AutoConfig {
@@ -212,16 +220,6 @@ impl AutoFilled {
             entry.1 += c.filled;
         }
         counts.into_iter().map(|(name, (gaps, samples))| (name, gaps, samples)).collect()
-    }
-}
-
-impl crate::Filler for AutoConfig {
-    fn describe(&self) -> String {
-        format!("Auto trials={} blend={}", self.trials, self.blend)
-    }
-
-    fn fill(&self, take: &Take) -> Result<Filled, crate::FillError> {
-        Ok(fill(take, self).filled)
     }
 }
 

@@ -3,8 +3,9 @@
 //! this crate ([`FillConfig`]) or a learned refiner from the `nn` crate (LocalMoCap section
 //! 3.1: EDM first, then the biLSTM's correction).
 
-use crate::{FillConfig, Filled};
+use crate::{FillConfig, FillMethod, Filled, auto};
 use locap_core::Take;
+use locap_core::provenance::{FillRecord, MarkerFrames};
 
 /// A gap filler.
 ///
@@ -20,6 +21,16 @@ pub trait Filler {
     /// # Errors
     /// The filler cannot run on this take (e.g. a learned model trained on other markers).
     fn fill(&self, take: &Take) -> Result<Filled, FillError>;
+
+    /// Fills `take` and says, per gap, what filled it, for a filler that chooses per gap
+    /// (`auto`); one that fills every gap one way returns no records (its
+    /// [`Filler::describe`] says it all).
+    ///
+    /// # Errors
+    /// As [`Filler::fill`].
+    fn fill_recorded(&self, take: &Take) -> Result<(Filled, Vec<FillRecord>), FillError> {
+        Ok((self.fill(take)?, Vec::new()))
+    }
 }
 
 /// Why a [`Filler`] could not fill a take.
@@ -51,6 +62,34 @@ impl Filler for FillConfig {
     fn fill(&self, take: &Take) -> Result<Filled, FillError> {
         Ok(crate::fill_gaps(take, self))
     }
+
+    fn fill_recorded(&self, take: &Take) -> Result<(Filled, Vec<FillRecord>), FillError> {
+        match self.method {
+            FillMethod::Auto => auto::AutoConfig::from_fill(self).fill_recorded(take),
+            _ => Ok((crate::fill_gaps(take, self), Vec::new())),
+        }
+    }
+}
+
+impl Filler for auto::AutoConfig {
+    fn describe(&self) -> String {
+        format!("Auto trials={} blend={}", self.trials, self.blend)
+    }
+
+    fn fill(&self, take: &Take) -> Result<Filled, FillError> {
+        Ok(auto::fill(take, self).filled)
+    }
+
+    fn fill_recorded(&self, take: &Take) -> Result<(Filled, Vec<FillRecord>), FillError> {
+        let auto = auto::fill(take, self);
+        let records = auto
+            .choices
+            .iter()
+            .filter(|c| c.filled > 0)
+            .map(|c| FillRecord { at: MarkerFrames { marker: c.marker, frames: c.frames.clone() }, method: c.method() })
+            .collect();
+        Ok((auto.filled, records))
+    }
 }
 
 impl<F: Filler + ?Sized> Filler for &F {
@@ -61,6 +100,10 @@ impl<F: Filler + ?Sized> Filler for &F {
     fn fill(&self, take: &Take) -> Result<Filled, FillError> {
         (**self).fill(take)
     }
+
+    fn fill_recorded(&self, take: &Take) -> Result<(Filled, Vec<FillRecord>), FillError> {
+        (**self).fill_recorded(take)
+    }
 }
 
 impl<F: Filler + ?Sized> Filler for Box<F> {
@@ -70,6 +113,10 @@ impl<F: Filler + ?Sized> Filler for Box<F> {
 
     fn fill(&self, take: &Take) -> Result<Filled, FillError> {
         (**self).fill(take)
+    }
+
+    fn fill_recorded(&self, take: &Take) -> Result<(Filled, Vec<FillRecord>), FillError> {
+        (**self).fill_recorded(take)
     }
 }
 

@@ -167,14 +167,7 @@ fn fill_with_method(take: &Take, config: &FillConfig) -> Filled {
         FillMethod::Spline => baseline::spline::fill(take),
         FillMethod::Pca => baseline::pca::fill(take, &baseline::pca::PcaConfig::default()),
         FillMethod::Rigid => baseline::rigid::fill(take, config.selection),
-        FillMethod::Auto => {
-            let auto = auto::AutoConfig {
-                edm_neighbours: config.neighbours,
-                selection: config.selection,
-                ..auto::AutoConfig::default()
-            };
-            auto::fill(take, &auto).filled
-        }
+        FillMethod::Auto => auto::fill(take, &auto::AutoConfig::from_fill(config)).filled,
     }
 }
 

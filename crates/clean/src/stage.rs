@@ -10,7 +10,7 @@
 use crate::outliers::{self, Outlier, OutlierConfig};
 use crate::swaps::{self, Swap, SwapConfig};
 use crate::{FillConfig, FillError, Filled, Filler};
-use locap_core::provenance::{MarkerFrames, OutlierRecord, Provenance, SwapRecord};
+use locap_core::provenance::{FillRecord, MarkerFrames, OutlierRecord, Provenance, SwapRecord};
 use locap_core::{GapStatistics, Take};
 use serde::{Deserialize, Serialize};
 
@@ -73,6 +73,8 @@ pub struct Cleaned {
     pub swaps: Vec<Swap>,
     /// The filler, as it describes itself (`LOCAP:METHOD`).
     pub method: String,
+    /// Per gap, what filled it, when the filler chooses per gap (`LOCAP:FILLS`).
+    pub fills: Vec<FillRecord>,
     /// Per marker, take order.
     pub markers: Vec<MarkerReport>,
 }
@@ -97,6 +99,7 @@ impl Cleaned {
                 })
                 .collect(),
             swaps: self.swaps.iter().map(|s| SwapRecord { a: s.a, b: s.b, frames: s.frames.clone() }).collect(),
+            fills: self.fills.clone(),
         }
     }
 
@@ -108,6 +111,24 @@ impl Cleaned {
     /// Missing samples the fill computed, summed over markers.
     pub fn filled_samples(&self) -> usize {
         self.markers.iter().map(|m| m.filled_samples).sum()
+    }
+
+    /// Per leading method of [`Cleaned::fills`] (a blend's first, `default` kept apart when no
+    /// trial chose it): `(method, gaps, samples in those gaps)`, by name. The summary of a
+    /// per-gap fill.
+    pub fn fills_by_method(&self) -> Vec<(String, usize, usize)> {
+        let mut counts: std::collections::BTreeMap<String, (usize, usize)> = Default::default();
+        for r in &self.fills {
+            let (prefix, rest) = match r.method.strip_prefix("default: ") {
+                Some(rest) => ("default ", rest),
+                None => ("", r.method.as_str()),
+            };
+            let lead = format!("{prefix}{}", rest.split(' ').next().unwrap_or_default());
+            let entry = counts.entry(lead).or_default();
+            entry.0 += 1;
+            entry.1 += r.at.frames.len();
+        }
+        counts.into_iter().map(|(m, (g, n))| (m, g, n)).collect()
     }
 
     /// Samples still missing, summed over markers.
@@ -143,8 +164,11 @@ pub fn clean_with(take: &Take, config: &CleanConfig, filler: &dyn Filler) -> Res
     };
     let mut holed = raw.clone();
     let removed = outliers::remove(&mut holed, &found);
-    let mut filled = filler.fill(&holed)?;
+    let (mut filled, mut fills) = filler.fill_recorded(&holed)?;
     crate::refill_outliers(&mut filled, &found);
+    // A gap that is an outlier window is refilled by the spline: it is recorded as an outlier.
+    let m = take.marker_count();
+    fills.retain(|r| !r.at.frames.clone().all(|f| removed[f * m + r.at.marker]));
     let markers = reports(&raw, &filled, &removed, &found);
     Ok(Cleaned {
         visible: holed.validity().to_vec(),
@@ -153,6 +177,7 @@ pub fn clean_with(take: &Take, config: &CleanConfig, filler: &dyn Filler) -> Res
         outliers: found,
         swaps: swapped,
         method: filler.describe(),
+        fills,
         markers,
     })
 }
@@ -228,6 +253,22 @@ mod tests {
         let with = clean_with(&t, &CleanConfig::default(), &linear).unwrap();
         assert_eq!(with.method, "Linear");
         assert_eq!(with.outliers.len(), 1);
+    }
+
+    #[test]
+    fn a_per_gap_fill_records_what_filled_each_gap() {
+        let t = take();
+        let auto = FillConfig { method: FillMethod::Auto, ..FillConfig::default() };
+        let cleaned = clean(&t, &CleanConfig { fill: auto, ..CleanConfig::default() });
+        assert_eq!(cleaned.markers[1].filled_samples, 10);
+        assert_eq!(cleaned.fills.len(), 1, "{:?}", cleaned.fills);
+        assert_eq!(cleaned.fills[0].at, MarkerFrames { marker: 1, frames: 100..110 });
+        let by_method = cleaned.fills_by_method();
+        assert_eq!(by_method.len(), 1);
+        assert_eq!((by_method[0].1, by_method[0].2), (1, 10));
+        assert_eq!(cleaned.provenance().fills, cleaned.fills);
+        // One method for every gap: nothing per gap to record.
+        assert!(clean(&t, &CleanConfig::default()).fills.is_empty());
     }
 
     #[test]

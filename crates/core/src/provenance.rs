@@ -9,6 +9,7 @@
 //! | `LOCAP:FILLED` | `LABEL first-last` | samples locap computed (gaps and replaced outliers) |
 //! | `LOCAP:OUTLIERS` | `LABEL first-last Kind` | samples removed as outliers (`Spike`, `Stuck`), then refilled |
 //! | `LOCAP:SWAPS` | `LABEL_A LABEL_B first-last` | two markers whose samples were exchanged back |
+//! | `LOCAP:FILLS` | `LABEL first-last method` | per gap, what filled it when the fill chooses per gap (`auto`: `pca`, `edm 0.62 + rigid 0.38`) |
 //! | `LOCAP:METHOD` | free text | the fill, e.g. `Edm K=6` |
 //!
 //! The three lists are stored in the compact form of [`crate::range_list`] (files written by
@@ -56,6 +57,15 @@ pub struct SwapRecord {
     pub frames: Range<usize>,
 }
 
+/// What filled one gap, for a fill that chooses per gap.
+#[derive(Debug, Clone, PartialEq, Eq, Hash)]
+pub struct FillRecord {
+    /// The gap.
+    pub at: MarkerFrames,
+    /// The method or blend, as the filler names it (no word of the form `first-last`).
+    pub method: String,
+}
+
 /// What locap changed in one take (see the module docs for the stored form).
 #[derive(Debug, Clone, Default, PartialEq, Eq)]
 pub struct Provenance {
@@ -67,6 +77,8 @@ pub struct Provenance {
     pub outliers: Vec<OutlierRecord>,
     /// Label swaps undone.
     pub swaps: Vec<SwapRecord>,
+    /// Per gap, the method that filled it (empty when one method filled every gap).
+    pub fills: Vec<FillRecord>,
 }
 
 /// A `LOCAP` parameter that does not describe the take it is read with.
@@ -139,7 +151,17 @@ impl Provenance {
                 .map(|s| (parameter, s))
                 .map_err(|source| ProvenanceError::List { parameter, source })
         };
-        let mut out = vec![encode("FILLED", &filled)?, encode("OUTLIERS", &outliers)?, encode("SWAPS", &swaps)?];
+        let fills: Vec<String> = self
+            .fills
+            .iter()
+            .map(|r| format!("{} {} {}", labels[r.at.marker], range(&r.at.frames), r.method))
+            .collect();
+        let mut out = vec![
+            encode("FILLED", &filled)?,
+            encode("OUTLIERS", &outliers)?,
+            encode("SWAPS", &swaps)?,
+            encode("FILLS", &fills)?,
+        ];
         if let Some(method) = &self.method {
             out.push(("METHOD", vec![method.clone()]));
         }
@@ -174,13 +196,34 @@ impl Provenance {
             let (a, b) = reader.pair(pair, &line)?;
             out.swaps.push(SwapRecord { a, b, frames });
         }
+        for line in decode("FILLS")? {
+            // The method follows the range and may have several words: the range is the last
+            // word of the form `first-last`.
+            let words: Vec<&str> = line.split(' ').collect();
+            let at = words.iter().rposition(|w| is_range(w)).ok_or_else(|| reader.bad(&line, "FILLS"))?;
+            let head = words[..=at].join(" ");
+            let (label, frames) = reader.range_at_end(&head, "FILLS", &line)?;
+            let at_marker = MarkerFrames { marker: reader.marker(label, "FILLS", &line)?, frames };
+            out.fills.push(FillRecord { at: at_marker, method: words[at + 1..].join(" ") });
+        }
         Ok(out)
     }
 
     /// True when locap recorded nothing.
     pub fn is_empty(&self) -> bool {
-        self.method.is_none() && self.filled.is_empty() && self.outliers.is_empty() && self.swaps.is_empty()
+        self.method.is_none()
+            && self.filled.is_empty()
+            && self.outliers.is_empty()
+            && self.swaps.is_empty()
+            && self.fills.is_empty()
     }
+}
+
+/// `first-last` with two numbers.
+fn is_range(word: &str) -> bool {
+    word.split_once('-').is_some_and(|(a, b)| {
+        !a.is_empty() && !b.is_empty() && a.bytes().all(|c| c.is_ascii_digit()) && b.bytes().all(|c| c.is_ascii_digit())
+    })
 }
 
 /// Parses the lines of one take's lists.
@@ -195,6 +238,7 @@ impl LineReader<'_> {
         let form = match parameter {
             "OUTLIERS" => "LABEL first-last Kind",
             "SWAPS" => "LABEL LABEL first-last",
+            "FILLS" => "LABEL first-last method",
             _ => "LABEL first-last",
         };
         ProvenanceError::Line { parameter, line: line.to_string(), reason: format!("expected `{form}`") }
@@ -273,6 +317,10 @@ mod tests {
             ],
             outliers: vec![OutlierRecord { at: MarkerFrames { marker: 1, frames: 5..7 }, kind: "Spike".into() }],
             swaps: vec![SwapRecord { a: 1, b: 2, frames: 0..10 }],
+            fills: vec![
+                FillRecord { at: MarkerFrames { marker: 1, frames: 2..6 }, method: "edm 0.62 + pca 0.38".into() },
+                FillRecord { at: MarkerFrames { marker: 0, frames: 1..4 }, method: "default: rigid".into() },
+            ],
         }
     }
 
@@ -290,6 +338,10 @@ mod tests {
         assert_eq!(lines, ["A 12-14", "Sub:B C 13-16", "Sub:B C 20-20"]);
         assert_eq!(range_list::decode(&params["OUTLIERS"]).unwrap(), ["Sub:B C 16-17 Spike"]);
         assert_eq!(range_list::decode(&params["SWAPS"]).unwrap(), ["Sub:B C D 11-20"]);
+        assert_eq!(
+            range_list::decode(&params["FILLS"]).unwrap(),
+            ["Sub:B C 13-16 edm 0.62 + pca 0.38", "A 12-14 default: rigid"]
+        );
         let back = Provenance::from_parameters(&t, |name| params.get(name).cloned().unwrap_or_default()).unwrap();
         assert_eq!(back, p);
     }
@@ -304,7 +356,7 @@ mod tests {
         let p = Provenance::from_parameters(&t, |n| params.get(n).cloned().unwrap_or_default()).unwrap();
         assert_eq!(p.filled, [MarkerFrames { marker: 0, frames: 1..4 }]);
         assert_eq!(p.outliers[0].kind, "Stuck");
-        assert!(p.method.is_none() && p.swaps.is_empty());
+        assert!(p.method.is_none() && p.swaps.is_empty() && p.fills.is_empty());
     }
 
     #[test]
@@ -322,6 +374,7 @@ mod tests {
         assert!(err("FILLED", "A 14-12").contains("outside"));
         assert!(err("OUTLIERS", "A 12-13").contains("LOCAP:OUTLIERS"));
         assert!(err("SWAPS", "A Z 12-13").contains("not two labels"));
+        assert!(err("FILLS", "A pca").contains("expected `LABEL first-last method`"));
         let corrupt = Provenance::from_parameters(&t, |n| {
             if n == "FILLED" { vec![range_list::MAGIC.to_string(), "g".to_string()] } else { Vec::new() }
         });

@@ -74,6 +74,9 @@ pub enum Method {
     Pca,
     /// Rigid-body fill from 3 neighbours.
     Rigid,
+    /// Per gap, the method (or blend) that filled trial gaps of the same length best in this
+    /// take; recorded per gap in LOCAP:FILLS.
+    Auto,
     /// EDM refined by a learned network, shipped or `--model` (LocalMoCap section 3.1).
     Neural,
 }
@@ -88,6 +91,7 @@ impl From<Method> for FillMethod {
             Method::Spline => FillMethod::Spline,
             Method::Pca => FillMethod::Pca,
             Method::Rigid => FillMethod::Rigid,
+            Method::Auto => FillMethod::Auto,
         }
     }
 }
@@ -230,6 +234,12 @@ fn format_summary(path: &Path, s: &Cleaned) -> String {
         s.outlier_samples,
         s.swaps.len()
     );
+    let by_method = s.fills_by_method();
+    if !by_method.is_empty() {
+        let parts: Vec<String> =
+            by_method.iter().map(|(name, gaps, samples)| format!("{name} {gaps} gaps ({samples} samples)")).collect();
+        let _ = writeln!(t, "  filled by: {}", parts.join(", "));
+    }
     for m in &s.markers {
         if m.gaps > 0 || m.outliers > 0 || m.still_missing > 0 {
             let _ = writeln!(
