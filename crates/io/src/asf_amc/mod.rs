@@ -40,10 +40,10 @@
 //! - **Not supported:** translation and length dofs on bones (`tx`, `ty`, `tz`, `l`), which
 //!   give an [`Error::Unsupported`] when an AMC is read against such a skeleton.
 //! - **Limits.** The `*_with` readers check the bone count and the `:hierarchy` depth against
-//!   [`Limits`], and an AMC's frames × joints against [`Limits::max_samples`] and against the
-//!   AMC text's size (bones left out of a frame are samples no byte backs; see
-//!   [`crate::limits`]), frame by frame before the frame is stored.
-
+//!   [`Limits`](crate::limits::Limits), and an AMC's frames × joints against
+//!   [`Limits::max_samples`](crate::limits::Limits::max_samples) and against the AMC text's
+//!   size (bones left out of a frame are samples no byte backs; see [`crate::limits`]), frame
+//!   by frame before the frame is stored.
 //!
 //! The module holds what both files share: the Acclaim rotation convention, the angle unit
 //! (the one place where angles change unit: [`AngleUnit`]'s conversion to radians, applied
