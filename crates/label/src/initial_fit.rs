@@ -17,9 +17,10 @@ use crate::template::Template;
 use locap_clean::procrustes::{RigidTransform, align};
 use locap_core::{UpAxis, Vec3};
 use nalgebra::{Rotation3, Unit};
+use serde::{Deserialize, Serialize};
 
 /// Settings of the first-frame fit.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct FitConfig {
     /// A template marker is matched to a point only within this distance after the fit (mm).
     pub accept_mm: f64,

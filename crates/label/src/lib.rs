@@ -9,14 +9,27 @@
 //! - [`template`]: the marker set, a labeled reference pose and each marker's rigid edges;
 //! - [`initial_fit`]: labels of the first frame by fitting the template (section 3, end);
 //! - [`kalman`]: a constant-velocity Kalman filter per marker predicts and gates candidates;
-//! - [`labeler`]: soft graph matching costs (Eq. 1-4), missing-marker estimation from rigid
-//!   neighbours (section 4, Eq. 13), and the CP / UGM baselines of the paper's comparison;
+//! - [`labeler`]: the frame loop: soft graph matching on the rigid edges (Eq. 1-5,
+//!   [`labeler::edges`]), missing-marker estimation from rigid neighbours or a fitted pose
+//!   (section 4, Eq. 13, [`labeler::estimate`]), and the CP / UGM baselines of the paper's
+//!   comparison ([`labeler::baselines`]);
 //! - [`assignment`]: the Hungarian algorithm with dummies (Eq. 5) on the sparse candidate
 //!   graph, split into independent components so a frame costs microseconds;
 //! - [`cloud`]: the per-frame point clouds of a take.
 //!
-//! [`label_frames`] runs the whole take. This crate never reads files: the `locap label`
-//! command does, with `locap-io`.
+//! [`label_take`] labels a whole take in one call (first-frame fit, the online loop, the
+//! labeled take), [`label_frames`] runs the loop on point clouds with a known or fitted start.
+//! This crate never reads files: the `locap label` command does, with `locap-io`.
+//!
+//! ```no_run
+//! # fn demo(raw: &locap_core::Take, labeled_take: &locap_core::Take) -> Result<(), locap_label::LabelError> {
+//! use locap_label::{LabelConfig, Template, label_take};
+//! let template = Template::from_take(labeled_take, None)?;
+//! let labeled = label_take(raw, &template, &LabelConfig::default())?;
+//! println!("{} marker samples labeled", labeled.labeled_samples());
+//! # Ok(())
+//! # }
+//! ```
 
 pub mod assignment;
 pub mod cloud;
@@ -31,7 +44,7 @@ pub use initial_fit::{FitConfig, InitialFit, fit_first_frame};
 pub use labeler::{LabelConfig, Labeler, Method};
 pub use template::Template;
 
-use locap_core::{MarkerName, Take, UpAxis, Vec3};
+use locap_core::{MarkerName, Take, UpAxis};
 
 /// Why labeling cannot proceed.
 #[derive(Debug, thiserror::Error)]
@@ -65,7 +78,6 @@ pub enum Start<'a> {
 pub struct Labels {
     markers: usize,
     point: Vec<u32>,
-    estimated_mm: Vec<Option<Vec3>>,
 }
 
 const NONE: u32 = u32::MAX;
@@ -78,7 +90,7 @@ impl Labels {
         for frame in frames {
             point.extend((0..markers).map(|m| frame.get(m).copied().flatten().map_or(NONE, |p| p as u32)));
         }
-        Labels { markers, estimated_mm: vec![None; point.len()], point }
+        Labels { markers, point }
     }
 
     /// Number of frames.
@@ -90,11 +102,6 @@ impl Labels {
     pub fn get(&self, frame: usize, marker: usize) -> Option<usize> {
         let p = self.point[frame * self.markers + marker];
         (p != NONE).then_some(p as usize)
-    }
-
-    /// Where the labeler estimated marker `marker` in frame `frame` while it was not seen.
-    pub fn estimate_mm(&self, frame: usize, marker: usize) -> Option<Vec3> {
-        self.estimated_mm[frame * self.markers + marker]
     }
 
     /// The labeled take: one column per template marker (missing where no point was labeled),
@@ -183,6 +190,83 @@ impl Labels {
     }
 }
 
+/// A raw take labeled by [`label_take`], with what labeling found on the way.
+#[derive(Debug, Clone)]
+pub struct Labeled {
+    /// The labeled take: one column per template marker (missing where no point was
+    /// labeled), then, with [`LabelConfig::keep_unlabeled`], the points no marker took as
+    /// `*0`, `*1`, ...; sample quality, first frame and vertical axis come from the raw take.
+    pub take: Take,
+    /// Which point of its frame's cloud each template marker took.
+    pub labels: Labels,
+    /// The raw take's point clouds, which [`Labeled::labels`] index into.
+    pub frames: PointFrames,
+    /// The first frame's fit of the template.
+    pub fit: InitialFit,
+}
+
+impl Labeled {
+    /// Marker samples (frame x template marker) that took a point.
+    pub fn labeled_samples(&self) -> usize {
+        (0..self.labels.frame_count()).map(|f| self.labels.labeled_in(f)).sum()
+    }
+
+    /// Raw points that no marker took: ghosts, and markers left missing.
+    pub fn unlabeled_points(&self) -> usize {
+        self.frames.point_count() - self.labeled_samples()
+    }
+}
+
+/// Labels the raw take `raw` (its columns' names are ignored: every valid sample is a point)
+/// with `template`'s markers: fits the template to the first frame (`config.fit`, about
+/// `raw`'s vertical axis), labels every later frame online, and builds the labeled take.
+/// Missing markers are estimated from their rigid neighbours only; see
+/// [`label_take_with_pose`] for a skeleton.
+///
+/// # Errors
+/// [`LabelError::TooLarge`] for a take beyond [`cloud::MAX_POINTS`], [`LabelError::FirstFrame`]
+/// when the first frame does not show the template's pose, [`LabelError::Config`] for bad
+/// settings or a take without frames.
+pub fn label_take(raw: &Take, template: &Template, config: &LabelConfig) -> Result<Labeled, LabelError> {
+    label_take_with(raw, template, config, None)
+}
+
+/// [`label_take`] with missing markers estimated from a pose of `model` fitted every frame
+/// (paper section 4, [`ik`]). `model` attaches the template's markers, in template order, to
+/// a Y-up skeleton (as ASF and BVH skeletons are); a Z-up take sees it turned into its lab.
+///
+/// # Errors
+/// As [`label_take`], and [`LabelError::Config`] when `model` does not attach as many markers
+/// as the template has.
+pub fn label_take_with_pose(
+    raw: &Take,
+    template: &Template,
+    config: &LabelConfig,
+    model: &ik::MarkerModel,
+) -> Result<Labeled, LabelError> {
+    label_take_with(raw, template, config, Some(model))
+}
+
+fn label_take_with(
+    raw: &Take,
+    template: &Template,
+    config: &LabelConfig,
+    model: Option<&ik::MarkerModel>,
+) -> Result<Labeled, LabelError> {
+    // Before the fit, which reads `config.fit`.
+    config.check()?;
+    let frames = PointFrames::try_from_take(raw)?;
+    let model = model.map(|m| match raw.up_axis {
+        UpAxis::Z => m.clone().in_lab(ik::MarkerModel::y_up_in_z_up_lab()),
+        UpAxis::Y => m.clone(),
+    });
+    check_size(&frames, template)?;
+    let fit = fit_first_frame(template, frames.frame(0), raw.up_axis, &config.fit)?;
+    let labels = run(&frames, template, config, &fit.assignment, model)?;
+    let take = labels.to_take(&frames, template.names(), Some(raw), config.keep_unlabeled);
+    Ok(Labeled { take, labels, frames, fit })
+}
+
 /// Labels every frame of `frames` with `template`'s markers. Returns the labels and, when
 /// the start was fitted, the fit. With a skeleton `pose_model`, missing markers are estimated
 /// from a pose fitted every frame ([`ik`]).
@@ -193,6 +277,19 @@ pub fn label_frames(
     start: Start<'_>,
     pose_model: Option<ik::MarkerModel>,
 ) -> Result<(Labels, Option<InitialFit>), LabelError> {
+    check_size(frames, template)?;
+    let (initial, fit) = match start {
+        Start::Fit(fit_config, up) => {
+            let fit = fit_first_frame(template, frames.frame(0), up, &fit_config)?;
+            (fit.assignment.clone(), Some(fit))
+        }
+        Start::Known(initial) => (initial.to_vec(), None),
+    };
+    Ok((run(frames, template, config, &initial, pose_model)?, fit))
+}
+
+/// A take with frames, and labels for it that fit under the ceiling of the clouds.
+fn check_size(frames: &PointFrames, template: &Template) -> Result<(), LabelError> {
     if frames.frame_count() == 0 {
         return Err(LabelError::Config("the take has no frames".into()));
     }
@@ -205,28 +302,104 @@ pub fn label_frames(
             cloud::MAX_POINTS
         )));
     }
-    let first = frames.frame(0);
-    let (initial, fit) = match start {
-        Start::Fit(fit_config, up) => {
-            let fit = fit_first_frame(template, first, up, &fit_config)?;
-            (fit.assignment.clone(), Some(fit))
-        }
-        Start::Known(initial) => (initial.to_vec(), None),
-    };
+    Ok(())
+}
+
+/// The online loop from the first frame's labels `initial` on.
+fn run(
+    frames: &PointFrames,
+    template: &Template,
+    config: &LabelConfig,
+    initial: &[Option<usize>],
+    pose_model: Option<ik::MarkerModel>,
+) -> Result<Labels, LabelError> {
+    let m = template.marker_count();
     let mut labeler = Labeler::new(template, *config, frames.frame_rate_hz())?;
     if let Some(model) = pose_model {
         labeler = labeler.with_pose_model(model, ik::IkConfig::default())?;
     }
-    labeler.start(template, first, &initial)?;
+    labeler.start(template, frames.frame(0), initial)?;
     let mut point = Vec::with_capacity(frames.frame_count() * m);
-    let mut estimated_mm = Vec::with_capacity(frames.frame_count() * m);
     point.extend(initial.iter().map(|p| p.map_or(NONE, |p| p as u32)));
-    estimated_mm.extend(std::iter::repeat_n(None, m));
     for f in 1..frames.frame_count() {
         let labels = labeler.step(frames.frame(f));
         point.extend(labels.iter().map(|p| p.unwrap_or(NONE)));
-        estimated_mm
-            .extend(labeler.positions_mm().iter().zip(labeler.estimated()).map(|(p, &e)| if e { *p } else { None }));
     }
-    Ok((Labels { markers: m, point, estimated_mm }, fit))
+    Ok(Labels { markers: m, point })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use locap_core::Vec3;
+
+    const RATE: f64 = 120.0;
+    const FRAMES: usize = 240;
+
+    /// Five markers of one rigid body, turning and travelling.
+    fn body(f: usize) -> Vec<Vec3> {
+        let t = f as f64 / RATE;
+        let (c, s) = ((0.8 * t).cos(), (0.8 * t).sin());
+        [[0.0, 0.0, 0.0], [150.0, 0.0, 0.0], [0.0, 100.0, 0.0], [40.0, 60.0, 120.0], [-80.0, 30.0, 50.0]]
+            .iter()
+            .map(|&[x, y, z]| Vec3::new(c * x - s * y + 300.0 * t, s * x + c * y, z + 1000.0))
+            .collect()
+    }
+
+    const GHOST: [f64; 3] = [600.0, -500.0, 900.0];
+
+    /// The labeled take, and its raw version: the five markers and, from the second frame
+    /// on (the first-frame fit of so small a template needs a clean frame), a ghost, in
+    /// columns `*0`..`*5` that change every frame.
+    fn takes() -> (Take, Take) {
+        let names: Vec<MarkerName> = (0..5).map(|i| MarkerName::parse(&format!("M{i}"))).collect();
+        let labeled: Vec<Option<Vec3>> = (0..FRAMES).flat_map(|f| body(f).into_iter().map(Some)).collect();
+        let mut raw = Vec::with_capacity(FRAMES * 6);
+        for f in 0..FRAMES {
+            let mut points = body(f);
+            points.push(Vec3::from(GHOST));
+            raw.extend((0..6).map(|c| Some(points[(c + f) % 6]).filter(|_| f > 0 || (c + f) % 6 < 5)));
+        }
+        let raw_names = (0..6).map(|i| MarkerName::parse(&format!("*{i}"))).collect();
+        (Take::from_samples(names, &labeled, RATE).unwrap(), Take::from_samples(raw_names, &raw, RATE).unwrap())
+    }
+
+    #[test]
+    fn label_take_names_the_raw_points() {
+        let (labeled, raw) = takes();
+        let template = Template::from_take(&labeled, Some(0)).unwrap();
+        let config = LabelConfig::default();
+        let out = label_take(&raw, &template, &config).unwrap();
+        assert_eq!(out.take.markers(), labeled.markers());
+        for f in 0..FRAMES {
+            for m in 0..5 {
+                assert_eq!(out.take.position_mm(f, m), labeled.position_mm(f, m), "frame {f}, marker {m}");
+            }
+        }
+        assert_eq!((out.labeled_samples(), out.unlabeled_points()), (FRAMES * 5, FRAMES - 1));
+        assert!(out.fit.rms_mm < 1e-6, "{}", out.fit.rms_mm);
+        // The same labels as the loop on the clouds with a fitted start.
+        let (labels, fit) =
+            label_frames(&out.frames, &template, &config, Start::Fit(config.fit, raw.up_axis), None).unwrap();
+        assert_eq!((labels, fit), (out.labels, Some(out.fit)));
+
+        // Kept, the ghost is the one unlabeled column.
+        let kept = label_take(&raw, &template, &LabelConfig { keep_unlabeled: true, ..config }).unwrap();
+        assert_eq!(kept.take.marker_count(), 6);
+        assert_eq!(kept.take.markers()[5].full(), "*0");
+        assert!((1..FRAMES).all(|f| kept.take.position_mm(f, 5) == Some(Vec3::from(GHOST))));
+    }
+
+    #[test]
+    fn label_take_refuses_bad_settings_and_a_foreign_model() {
+        let (labeled, raw) = takes();
+        let template = Template::from_take(&labeled, Some(0)).unwrap();
+        let bad =
+            LabelConfig { fit: FitConfig { accept_mm: f64::NAN, ..FitConfig::default() }, ..LabelConfig::default() };
+        assert!(matches!(label_take(&raw, &template, &bad), Err(LabelError::Config(_))));
+        let model = ik::tests::arm_model();
+        assert_ne!(model.marker_count(), template.marker_count());
+        let error = label_take_with_pose(&raw, &template, &LabelConfig::default(), &model).unwrap_err();
+        assert!(matches!(error, LabelError::Config(_)), "{error}");
+    }
 }

@@ -7,6 +7,10 @@
 //! column per template marker (missing where no point was labeled); the points no marker took
 //! (ghosts) are dropped, or kept as `*0`, `*1`, ... with `--keep-unlabeled`. Everything else in
 //! the file (analog data, parameters) is kept.
+//!
+//! The labeling itself is one call, `locap_label::label_take` (or `label_take_with_pose` with
+//! `--skeleton`); this command finds the files, reads and writes them, records `LOCAP:LABELED`
+//! and prints the summary.
 
 use crate::inputs;
 use anyhow::{Context, Result, bail};
@@ -15,7 +19,7 @@ use locap_eval::label_bench::score;
 use locap_eval::unlabel::{TRUTH_FORMAT, TruthFile};
 use locap_io::c3d;
 use locap_label::ik::{Attachment, MarkerModel};
-use locap_label::{FitConfig, LabelConfig, PointFrames, Start, Template, label_frames};
+use locap_label::{FitConfig, LabelConfig, PointFrames, Template, label_take, label_take_with_pose};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
@@ -154,18 +158,17 @@ fn label_one(
 ) -> Result<String> {
     let mut file = inputs::read_c3d(input)?;
     let raw = file.to_take().map_err(|e| e.in_file(input))?;
-    let frames = PointFrames::try_from_take(&raw).map_err(|e| anyhow::anyhow!("{}: {e}", input.display()))?;
-    let config = LabelConfig::with_method(args.method.into());
-    let fit = FitConfig { accept_mm: args.fit_distance, ..FitConfig::default() };
-    // ASF and BVH skeletons are Y-up; a Z-up take sees them turned.
-    let model = model.map(|m| match raw.up_axis {
-        locap_core::UpAxis::Z => m.clone().in_lab(MarkerModel::y_up_in_z_up_lab()),
-        locap_core::UpAxis::Y => m.clone(),
-    });
-    let (labels, fitted) = label_frames(&frames, template, &config, Start::Fit(fit, raw.up_axis), model)
-        .with_context(|| format!("{}", input.display()))?;
-    let labeled = labels.to_take(&frames, template.names(), Some(&raw), args.keep_unlabeled);
-    file.set_take(&labeled).map_err(|e| e.in_file(input))?;
+    let config = LabelConfig {
+        fit: FitConfig { accept_mm: args.fit_distance, ..FitConfig::default() },
+        keep_unlabeled: args.keep_unlabeled,
+        ..LabelConfig::with_method(args.method.into())
+    };
+    let labeled = match model {
+        Some(model) => label_take_with_pose(&raw, template, &config, model),
+        None => label_take(&raw, template, &config),
+    }
+    .with_context(|| format!("{}", input.display()))?;
+    file.set_take(&labeled.take).map_err(|e| e.in_file(input))?;
     file.parameters.set_strings(
         "LOCAP",
         "LABELED",
@@ -174,21 +177,20 @@ fn label_one(
     c3d::write_path(&file, output)?;
 
     let m = template.marker_count();
-    let t = labels.frame_count();
-    let labeled_samples = (0..t).map(|f| (0..m).filter(|&k| labels.get(f, k).is_some()).count()).sum::<usize>();
-    let unassigned = frames.point_count() - labeled_samples;
-    let (consistent, checked) = labels.edge_consistency(&frames, template, EDGE_TOLERANCE_MM);
+    let t = labeled.labels.frame_count();
+    let (consistent, checked) = labeled.labels.edge_consistency(&labeled.frames, template, EDGE_TOLERANCE_MM);
     let mut line = format!(
-        "{}: {t} frames, {m} markers, {:.2}% of marker samples labeled, {unassigned} points left unlabeled{}; \
+        "{}: {t} frames, {m} markers, {:.2}% of marker samples labeled, {} points left unlabeled{}; \
          first-frame fit {:.1} mm rms; {:.2}% of checked samples keep their rigid edges within {EDGE_TOLERANCE_MM} mm\n",
         output.display(),
-        100.0 * labeled_samples as f64 / (t * m).max(1) as f64,
+        100.0 * labeled.labeled_samples() as f64 / (t * m).max(1) as f64,
+        labeled.unlabeled_points(),
         if args.keep_unlabeled { " (kept as *N)" } else { " (dropped)" },
-        fitted.map_or(0.0, |f| f.rms_mm),
+        labeled.fit.rms_mm,
         100.0 * consistent as f64 / checked.max(1) as f64,
     );
     if let Some(path) = &args.truth {
-        line.push_str(&score_against(path, &frames, &labels, template)?);
+        line.push_str(&score_against(path, &labeled.frames, &labeled.labels, template)?);
     }
     Ok(line)
 }

@@ -1,75 +1,14 @@
-//! Acclaim skeleton (ASF) and motion (AMC) files, as in the CMU motion capture database.
-//!
-//! An ASF file describes bones: each has a rest `direction` (a unit vector in the world frame)
-//! and `length`, a local frame given by `axis a b c ORDER`, and the rotational degrees of
-//! freedom (`dof rx ry rz`) that an AMC file animates. An AMC file lists, per frame number,
-//! one line per bone with its dof values in the ASF's dof order (`root` has six: the ASF
-//! root `order`, e.g. `TX TY TZ RX RY RZ`).
-//!
-//! # Conventions (Acclaim)
-//! - **Euler angles are applied in the order they are listed**: `axis a b c XYZ` rotates a
-//!   vector about X by `a` first, then Y by `b`, then Z by `c`, i.e. the matrix is
-//!   `C = Rz(c) * Ry(b) * Rx(a)`; the dof values of a bone build `M` the same way from the
-//!   dof order. (This is the reverse of the core [`EulerOrder`] product for the same letters.
-//!   It was checked against CMU take 01_01: with it the C3D markers stay rigidly attached to
-//!   the bones (marker-to-joint distances vary by 3-15 mm std over the take); with the
-//!   reverse product they drift (75-180 mm std).)
-//! - A bone's rotation relative to its parent is `L = C * M * C^-1`, its global rotation
-//!   `R = R_parent * L`, and its tip is `start + R * direction * length`, where `start` is the
-//!   parent bone's tip (the root's position for the root's children).
-//! - **Mapping to [`locap_core::Skeleton`]**: joint 0 is `root`; every bone becomes a joint at
-//!   its *start*, whose local rotation is `L` and whose offset is the parent bone's
-//!   `direction * length` (zero for children of the root); every leaf bone gets an extra end
-//!   site joint `<bone>_End` at its tip. Because `L` is the identity at rest, core offsets in
-//!   the parent frame are exactly the ASF world-frame rest vectors. The root joint's rotation
-//!   is `C_root * M_root * C_root^-1` with `C_root` from the root's `orientation` (in its
-//!   `axis` order) and `M_root` from the AMC `RX RY RZ` values (in the root's `order`); its
-//!   position is the AMC `TX TY TZ` (the ASF root `position` where the AMC gives none).
-//! - **Units.** ASF lengths are in units of `1/length` inches, where `length` is the
-//!   `:units length` value (CMU uses 0.45), so one unit is `25.4 / length` mm: see
-//!   [`AsfSkeleton::mm_per_unit`]. Angles are in the `:units angle` unit (`deg` or `rad`);
-//!   this reader stores them in degrees. An AMC's `:DEGREES`/`:RADIANS` header decides its
-//!   angle unit; without one, the ASF's angle unit applies.
-//! - **Frame rate.** AMC files do not store one; the caller supplies it (CMU captures are
-//!   120 Hz).
-//! - **Strictness.** Frame numbers must be consecutive, every bone line must name a bone of
-//!   the ASF and have one value per dof, a bone may appear once per frame, and values must be
-//!   finite. A bone missing from a frame is read at its rest rotation (all dofs zero), as a
-//!   not fully specified AMC intends. Errors name the 1-based line (and column for values).
-//! - **Not supported:** translation and length dofs on bones (`tx`, `ty`, `tz`, `l`), which
-//!   give an [`Error::Unsupported`] when an AMC is read against such a skeleton.
-//! - **Limits.** The `*_with` readers check the bone count and the `:hierarchy` depth against
-//!   [`Limits`], and an AMC's frames × joints against [`Limits::max_samples`] and against the
-//!   AMC text's size (bones left out of a frame are samples no byte backs; see
-//!   [`crate::limits`]), frame by frame before the frame is stored.
+//! ASF skeletons: the `:units`, `:root`, `:bonedata` and `:hierarchy` sections, and the core
+//! [`Skeleton`] they map to (see the parent module for the conventions).
 
+use super::{AngleUnit, Dof, content_lines, num, reversed, text_err, words};
 use crate::limits::{self, Limits};
 use crate::{Error, Result};
-use locap_core::rotation::axis_rotation;
-use locap_core::{EulerOrder, Joint, Motion, Quat, Skeleton, Vec3};
+use locap_core::{EulerOrder, Joint, Skeleton, Vec3};
 use std::collections::{HashMap, HashSet};
 use std::path::Path;
 
 const ASF: &str = "ASF";
-const AMC: &str = "AMC";
-
-/// Angle unit of an Acclaim file.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum AngleUnit {
-    /// Degrees (`deg`, `:DEGREES`).
-    Degree,
-    /// Radians (`rad`, `:RADIANS`).
-    Radian,
-}
-
-impl AngleUnit {
-    fn to_degrees(self, v: f64) -> f64 {
-        match self {
-            AngleUnit::Degree => v,
-            AngleUnit::Radian => v.to_degrees(),
-        }
-    }
-}
 
 /// The ASF `:units` section.
 #[derive(Debug, Clone, PartialEq)]
@@ -82,59 +21,6 @@ pub struct AsfUnits {
     pub angle: AngleUnit,
 }
 
-/// One degree of freedom of a bone or of the root.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub enum Dof {
-    /// Rotation about X (`rx`).
-    Rx,
-    /// Rotation about Y (`ry`).
-    Ry,
-    /// Rotation about Z (`rz`).
-    Rz,
-    /// Translation along X (`tx`).
-    Tx,
-    /// Translation along Y (`ty`).
-    Ty,
-    /// Translation along Z (`tz`).
-    Tz,
-    /// Bone length change (`l`).
-    L,
-}
-
-impl Dof {
-    fn parse(text: &str) -> Option<Dof> {
-        match text.to_ascii_lowercase().as_str() {
-            "rx" => Some(Dof::Rx),
-            "ry" => Some(Dof::Ry),
-            "rz" => Some(Dof::Rz),
-            "tx" => Some(Dof::Tx),
-            "ty" => Some(Dof::Ty),
-            "tz" => Some(Dof::Tz),
-            "l" => Some(Dof::L),
-            _ => None,
-        }
-    }
-
-    /// The axis of a rotation dof (0 = X, 1 = Y, 2 = Z).
-    fn rotation_axis(self) -> Option<usize> {
-        match self {
-            Dof::Rx => Some(0),
-            Dof::Ry => Some(1),
-            Dof::Rz => Some(2),
-            _ => None,
-        }
-    }
-
-    fn translation_axis(self) -> Option<usize> {
-        match self {
-            Dof::Tx => Some(0),
-            Dof::Ty => Some(1),
-            Dof::Tz => Some(2),
-            _ => None,
-        }
-    }
-}
-
 /// The ASF `:root` section.
 #[derive(Debug, Clone, PartialEq)]
 pub struct AsfRoot {
@@ -144,8 +30,8 @@ pub struct AsfRoot {
     pub axis: EulerOrder,
     /// Rest position of the root, in ASF length units.
     pub position: Vec3,
-    /// Rest orientation angles, degrees, in `axis` order.
-    pub orientation_deg: [f64; 3],
+    /// Rest orientation angles, radians, in `axis` order.
+    pub orientation_rad: [f64; 3],
 }
 
 /// One bone of an ASF skeleton.
@@ -161,13 +47,13 @@ pub struct AsfBone {
     pub direction: Vec3,
     /// Length, ASF length units.
     pub length: f64,
-    /// The `axis` angles, degrees, in `axis_order` order.
-    pub axis_deg: [f64; 3],
+    /// The `axis` angles, radians, in `axis_order` order.
+    pub axis_rad: [f64; 3],
     /// Axis letters as written (`XYZ`: X applied first, see the module docs).
     pub axis_order: EulerOrder,
     /// Degrees of freedom, in the order AMC lines list their values.
     pub dof: Vec<Dof>,
-    /// `(min, max)` per dof (degrees for rotations; may be infinite); empty if not given.
+    /// `(min, max)` per dof (radians for rotations; may be infinite); empty if not given.
     pub limits: Vec<(f64, f64)>,
 }
 
@@ -184,55 +70,6 @@ pub struct AsfSkeleton {
     pub root: AsfRoot,
     /// The bones, parents first.
     pub bones: Vec<AsfBone>,
-}
-
-/// Rotation applying `angles_deg` about `axes` in the listed order (the first one first to a
-/// vector): the Acclaim convention, `R = R_last * ... * R_first`.
-fn acclaim_rotation(axes_angles: impl IntoIterator<Item = (usize, f64)>) -> Quat {
-    let mut q = Quat::identity();
-    for (axis, angle_deg) in axes_angles {
-        q = axis_rotation(axis, angle_deg.to_radians()) * q;
-    }
-    q
-}
-
-/// `C` of an `axis` line.
-fn axis_frame(order: EulerOrder, angles_deg: [f64; 3]) -> Quat {
-    acclaim_rotation(order.axes().into_iter().zip(angles_deg))
-}
-
-/// The core order with the same matrix product as Acclaim letters `order` (reversed letters).
-fn reversed(order: EulerOrder) -> EulerOrder {
-    let [a, b, c] = order.axes();
-    EulerOrder::from_axes([c, b, a]).unwrap_or(order)
-}
-
-/// Lines without `\r`, numbered from 1, comments (`#`) and blank lines dropped. Lines keep
-/// their indentation so that reported columns match what an editor shows.
-fn content_lines(text: &str) -> impl Iterator<Item = (usize, &str)> {
-    text.split('\n').enumerate().filter_map(|(i, l)| {
-        let l = l.strip_suffix('\r').unwrap_or(l);
-        let t = l.trim();
-        (!t.is_empty() && !t.starts_with('#')).then_some((i + 1, l))
-    })
-}
-
-/// Words of a line with their 1-based (byte) columns in that line.
-fn words<'a>(raw: &'a str) -> impl Iterator<Item = (usize, &'a str)> + 'a {
-    let base = raw.as_ptr() as usize;
-    raw.split_whitespace().map(move |w| (w.as_ptr() as usize - base + 1, w))
-}
-
-fn text_err(format: &'static str, line: usize, column: Option<usize>, message: impl Into<String>) -> Error {
-    Error::Text { format, line, column, message: message.into() }
-}
-
-/// A finite number (or, where `allow_inf`, an infinite limit).
-fn num(format: &'static str, line: usize, col: usize, word: &str, what: &str, allow_inf: bool) -> Result<f64> {
-    match word.parse::<f64>() {
-        Ok(v) if v.is_finite() || (allow_inf && v.is_infinite()) => Ok(v),
-        _ => Err(text_err(format, line, Some(col), format!("expected a number for {what}, found {word:?}"))),
-    }
 }
 
 fn three(line: usize, ws: &[(usize, &str)], what: &str) -> Result<[f64; 3]> {
@@ -391,7 +228,7 @@ pub fn read_asf_with(text: &str, limits: &Limits) -> Result<AsfSkeleton> {
                 }
                 "position" => root_position = Vec3::from(three(line, rest, "position")?),
                 "orientation" => {
-                    root_orientation = three(line, rest, "orientation")?.map(|a| units.angle.to_degrees(a));
+                    root_orientation = three(line, rest, "orientation")?;
                 }
                 _ => {
                     return Err(text_err(ASF, line, Some(key_col), format!("unknown root field {key:?}")));
@@ -453,7 +290,7 @@ pub fn read_asf_with(text: &str, limits: &Limits) -> Result<AsfSkeleton> {
                                 return Err(text_err(ASF, line, None, "axis needs 3 angles and an order like XYZ"));
                             }
                         };
-                        bone.axis = Some((angles.map(|a| units.angle.to_degrees(a)), order));
+                        bone.axis = Some((angles, order));
                     }
                     "dof" => {
                         for &(col, w) in rest {
@@ -555,14 +392,14 @@ pub fn read_asf_with(text: &str, limits: &Limits) -> Result<AsfSkeleton> {
         if index_of.contains_key(&child) {
             continue; // impossible: a bone has one parent; kept as a cycle guard
         }
-        let (axis_deg, axis_order) = d.axis.unwrap_or(([0.0; 3], EulerOrder::XYZ));
+        let (axis, axis_order) = d.axis.unwrap_or(([0.0; 3], EulerOrder::XYZ));
         let limits = d
             .limits
             .iter()
             .zip(&d.dof)
             .map(|(&(lo, hi), dof)| {
                 if dof.rotation_axis().is_some() {
-                    (units.angle.to_degrees(lo), units.angle.to_degrees(hi))
+                    (units.angle.to_radians(lo), units.angle.to_radians(hi))
                 } else {
                     (lo, hi)
                 }
@@ -574,7 +411,7 @@ pub fn read_asf_with(text: &str, limits: &Limits) -> Result<AsfSkeleton> {
             parent,
             direction: d.direction.unwrap_or_else(Vec3::zeros),
             length: d.length.unwrap_or(0.0),
-            axis_deg,
+            axis_rad: axis.map(|a| units.angle.to_radians(a)),
             axis_order,
             dof: d.dof.clone(),
             limits,
@@ -596,11 +433,12 @@ pub fn read_asf_with(text: &str, limits: &Limits) -> Result<AsfSkeleton> {
             ));
         }
     }
+    let orientation_rad = root_orientation.map(|a| units.angle.to_radians(a));
     Ok(AsfSkeleton {
         version,
         name,
         units,
-        root: AsfRoot { order, axis: root_axis, position: root_position, orientation_deg: root_orientation },
+        root: AsfRoot { order, axis: root_axis, position: root_position, orientation_rad },
         bones,
     })
 }
@@ -729,178 +567,13 @@ fn root_rotation_order(root: &AsfRoot) -> EulerOrder {
     dof_order(root.order.iter().copied(), root.axis)
 }
 
-/// Reads an AMC file's text against its skeleton, at `frame_rate_hz` (AMC files do not say;
-/// CMU captures are 120 Hz). Root translations are scaled by [`AsfSkeleton::mm_per_unit`].
-pub fn read_amc(text: &str, asf: &AsfSkeleton, frame_rate_hz: f64) -> Result<Motion> {
-    read_amc_scaled(text, asf, frame_rate_hz, asf.mm_per_unit())
-}
-
-/// [`read_amc`] with an explicit length scale, to match [`AsfSkeleton::to_skeleton`].
-pub fn read_amc_scaled(text: &str, asf: &AsfSkeleton, frame_rate_hz: f64, mm_per_length_unit: f64) -> Result<Motion> {
-    read_amc_scaled_with(text, asf, frame_rate_hz, mm_per_length_unit, &Limits::default())
-}
-
-/// [`read_amc_scaled`] with explicit [`Limits`] on frames and samples (frames × joints).
-pub fn read_amc_scaled_with(
-    text: &str,
-    asf: &AsfSkeleton,
-    frame_rate_hz: f64,
-    mm_per_length_unit: f64,
-    limits: &Limits,
-) -> Result<Motion> {
-    // Checked first: a rate the caller got wrong should not cost a pass over the file.
-    if !(frame_rate_hz.is_finite() && frame_rate_hz > 0.0) {
-        return Err(locap_core::SkeletonError::BadFrameRate(frame_rate_hz).into());
-    }
-    let skeleton = asf.to_skeleton(mm_per_length_unit)?;
-    for bone in &asf.bones {
-        if bone.dof.iter().any(|d| d.rotation_axis().is_none()) {
-            return Err(Error::Unsupported(format!(
-                "bone {:?} has translation or length dofs, which locap does not read",
-                bone.name
-            )));
-        }
-    }
-    if asf.root.order.contains(&Dof::L) {
-        return Err(Error::Unsupported("root dof \"l\"".into()));
-    }
-    let s = mm_per_length_unit;
-    let joints = skeleton.len();
-    let bone_count = asf.bones.len();
-    // Slot 0 is the root; slot i + 1 is bone i. Value vectors are reused frame to frame.
-    let mut slots: HashMap<&str, usize> = HashMap::with_capacity(bone_count + 1);
-    slots.insert("root", 0);
-    for (i, b) in asf.bones.iter().enumerate() {
-        slots.insert(b.name.as_str(), i + 1);
-    }
-    let dofs: Vec<&[Dof]> =
-        std::iter::once(asf.root.order.as_slice()).chain(asf.bones.iter().map(|b| b.dof.as_slice())).collect();
-    // The constant frames C and C^-1 of every bone (and the root).
-    let frames: Vec<(Quat, Quat)> = std::iter::once(axis_frame(asf.root.axis, asf.root.orientation_deg))
-        .chain(asf.bones.iter().map(|b| axis_frame(b.axis_order, b.axis_deg)))
-        .map(|c| (c, c.inverse()))
-        .collect();
-
-    let mut angle_unit = asf.units.angle;
-    let mut values: Vec<Vec<f64>> = vec![Vec::new(); bone_count + 1];
-    let mut seen = vec![false; bone_count + 1];
-    let mut frame_number: Option<i64> = None;
-    let mut frames_started = 0usize;
-    let mut rotations: Vec<Quat> = Vec::new();
-    let mut root_positions: Vec<Vec3> = Vec::new();
-
-    let mut finish = |values: &mut Vec<Vec<f64>>, seen: &mut Vec<bool>, unit: AngleUnit| {
-        let mut p = asf.root.position * s;
-        for (slot, (vals, ((c, c_inv), dof))) in values.iter().zip(frames.iter().zip(&dofs)).enumerate() {
-            let m = acclaim_rotation(
-                dof.iter().zip(vals).filter_map(|(d, v)| d.rotation_axis().map(|a| (a, unit.to_degrees(*v)))),
-            );
-            rotations.push(c * m * c_inv);
-            if slot == 0 {
-                for (d, v) in dof.iter().zip(vals) {
-                    if let Some(a) = d.translation_axis() {
-                        p[a] = v * s;
-                    }
-                }
-            }
-        }
-        root_positions.push(p);
-        // End sites never rotate.
-        rotations.extend(std::iter::repeat_n(Quat::identity(), joints.saturating_sub(bone_count + 1)));
-        for v in values.iter_mut() {
-            v.clear();
-        }
-        seen.fill(false);
-    };
-
-    for (line, raw) in content_lines(text) {
-        let ws: Vec<(usize, &str)> = words(raw).collect();
-        let Some(&(col, key)) = ws.first() else {
-            continue;
-        };
-        if let Some(keyword) = key.strip_prefix(':') {
-            if frame_number.is_some() {
-                return Err(text_err(AMC, line, Some(col), "header keyword after the first frame"));
-            }
-            match keyword.to_ascii_uppercase().as_str() {
-                "DEGREES" => angle_unit = AngleUnit::Degree,
-                "RADIANS" => angle_unit = AngleUnit::Radian,
-                _ => {} // :FULLY-SPECIFIED and others: nothing to change
-            }
-            continue;
-        }
-        if ws.len() == 1
-            && let Ok(n) = key.parse::<i64>()
-        {
-            if let Some(prev) = frame_number {
-                if prev.checked_add(1) != Some(n) {
-                    return Err(text_err(AMC, line, Some(col), format!("frame {n} follows frame {prev}")));
-                }
-                finish(&mut values, &mut seen, angle_unit);
-            }
-            // The frame starting here will be stored: count it before it is.
-            frames_started += 1;
-            limits.check_text_samples(AMC, frames_started, joints, "joints", text.len())?;
-            frame_number = Some(n);
-            continue;
-        }
-        if frame_number.is_none() {
-            return Err(text_err(AMC, line, Some(col), format!("expected a frame number, found {key:?}")));
-        }
-        let slot = *slots
-            .get(key)
-            .ok_or_else(|| text_err(AMC, line, Some(col), format!("unknown bone {key:?} (not in the ASF)")))?;
-        let (Some(vals), Some(dof), Some(flag)) = (values.get_mut(slot), dofs.get(slot), seen.get_mut(slot)) else {
-            continue;
-        };
-        if *flag {
-            return Err(text_err(AMC, line, Some(col), format!("bone {key:?} appears twice in one frame")));
-        }
-        *flag = true;
-        let given = ws.get(1..).unwrap_or(&[]);
-        if given.len() != dof.len() {
-            return Err(text_err(
-                AMC,
-                line,
-                None,
-                format!("bone {key:?} has {} dofs, the line gives {} values", dof.len(), given.len()),
-            ));
-        }
-        for &(c, w) in given {
-            vals.push(num(AMC, line, c, w, "a dof value", false)?);
-        }
-    }
-    if frame_number.is_some() {
-        finish(&mut values, &mut seen, angle_unit);
-    }
-    Ok(Motion::new(skeleton, rotations, root_positions, frame_rate_hz)?)
-}
-
-/// Reads an AMC file (see [`read_amc`]); errors name the file.
-pub fn read_amc_path(path: &Path, asf: &AsfSkeleton, frame_rate_hz: f64) -> Result<Motion> {
-    read_amc_path_with(path, asf, frame_rate_hz, &Limits::default())
-}
-
-/// [`read_amc_path`] with explicit [`Limits`]. A path that is not a regular file (a named
-/// pipe, a device, a directory) is refused before it is opened.
-pub fn read_amc_path_with(path: &Path, asf: &AsfSkeleton, frame_rate_hz: f64, limits: &Limits) -> Result<Motion> {
-    let text = limits::read_utf8(path, limits)?;
-    read_amc_scaled_with(&text, asf, frame_rate_hz, asf.mm_per_unit(), limits).map_err(|e| e.in_file(path))
-}
-
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use super::*;
+    use crate::Error;
 
-    const ASF_TEXT: &str = "# test\r\n:version 1.10\r\n:name T\r\n:units\r\n  mass 1.0\r\n  length 0.45\r\n  angle deg\r\n:documentation\r\n  free text: anything\r\n:root\r\n   order TX TY TZ RX RY RZ\r\n   axis XYZ\r\n   position 0 0 0\r\n   orientation 0 0 0\r\n:bonedata\r\n  begin\r\n     id 1\r\n     name a\r\n     direction 1 0 0\r\n     length 2\r\n     axis 90 0 90 XYZ\r\n    dof rx\r\n    limits (-160.0 20.0)\r\n  end\r\n  begin\r\n     id 2\r\n     name b\r\n     direction 0 1 0\r\n     length 1\r\n     axis 0 0 0 XYZ\r\n    dof rx rz\r\n    limits (-inf inf)\r\n           (-70.0 70.0)\r\n  end\r\n:hierarchy\r\n  begin\r\n    root a\r\n    a b\r\n  end\r\n";
-
-    fn amc(frames: &[&str]) -> String {
-        let mut s = String::from("#!OML:ASF x\r\n:FULLY-SPECIFIED\r\n:DEGREES\r\n");
-        for (i, f) in frames.iter().enumerate() {
-            s.push_str(&format!("{}\r\n{f}", i + 1));
-        }
-        s
-    }
+    /// A two-bone skeleton in CMU's layout (CRLF, comments, limits over two lines).
+    pub(in crate::asf_amc) const ASF_TEXT: &str = "# test\r\n:version 1.10\r\n:name T\r\n:units\r\n  mass 1.0\r\n  length 0.45\r\n  angle deg\r\n:documentation\r\n  free text: anything\r\n:root\r\n   order TX TY TZ RX RY RZ\r\n   axis XYZ\r\n   position 0 0 0\r\n   orientation 0 0 0\r\n:bonedata\r\n  begin\r\n     id 1\r\n     name a\r\n     direction 1 0 0\r\n     length 2\r\n     axis 90 0 90 XYZ\r\n    dof rx\r\n    limits (-160.0 20.0)\r\n  end\r\n  begin\r\n     id 2\r\n     name b\r\n     direction 0 1 0\r\n     length 1\r\n     axis 0 0 0 XYZ\r\n    dof rx rz\r\n    limits (-inf inf)\r\n           (-70.0 70.0)\r\n  end\r\n:hierarchy\r\n  begin\r\n    root a\r\n    a b\r\n  end\r\n";
 
     #[test]
     fn reads_the_test_skeleton() {
@@ -917,54 +590,6 @@ mod tests {
         assert_eq!(sk.joints()[2].offset_mm, Vec3::new(2.0, 0.0, 0.0));
     }
 
-    /// Hand-computed Acclaim convention: the first listed axis is applied first.
-    #[test]
-    fn acclaim_axis_and_dof_order() {
-        let asf = read_asf(ASF_TEXT).unwrap();
-        // Bone a: C = Rz(90) Rx(90) maps X to Y, so `rx 90` turns about world Y, and the tip
-        // of a (2, 0, 0) goes to (0, 0, -2). (The reverse product would turn about Z.)
-        // Bone b: M = Rz(90) Rx(90) takes its direction Y to Z (Rx first), not to -X.
-        let m = read_amc(
-            &amc(&["root 0 0 0 0 0 0\r\na 90\r\nb 0 0\r\n", "root 1 2 3 0 0 0\r\na 0\r\nb 90 90\r\n"]),
-            &asf,
-            120.0,
-        )
-        .unwrap();
-        assert_eq!(m.frame_count(), 2);
-        let s = asf.mm_per_unit();
-        let p = m.forward_kinematics(0).positions_mm;
-        assert!((p[2] - Vec3::new(0.0, 0.0, -2.0 * s)).norm() < 1e-9, "{:?}", p[2]);
-        let p = m.forward_kinematics(1).positions_mm;
-        assert!((p[0] - Vec3::new(1.0, 2.0, 3.0) * s).norm() < 1e-9);
-        assert!((p[3] - Vec3::new(3.0, 2.0, 4.0) * s).norm() < 1e-9, "{:?}", p[3]);
-    }
-
-    #[test]
-    fn radians_header_is_honoured() {
-        let asf = read_asf(ASF_TEXT).unwrap();
-        let text = amc(&["root 0 0 0 0 0 0\r\na 1.5707963267948966\r\n"]).replace(":DEGREES", ":RADIANS");
-        let m = read_amc(&text, &asf, 120.0).unwrap();
-        let p = m.forward_kinematics(0).positions_mm;
-        assert!((p[2] - Vec3::new(0.0, 0.0, -2.0 * asf.mm_per_unit())).norm() < 1e-9);
-    }
-
-    #[test]
-    fn amc_errors_name_the_line() {
-        let asf = read_asf(ASF_TEXT).unwrap();
-        let check = |text: String, want_line: usize| match read_amc(&text, &asf, 120.0) {
-            Err(Error::Text { format: "AMC", line, .. }) => assert_eq!(line, want_line, "{text}"),
-            other => panic!("{other:?}"),
-        };
-        check(amc(&["root 0 0 0 0 0 0\r\nzzz 1\r\n"]), 6);
-        check(amc(&["root 0 0 0 0 0 0\r\na x\r\n"]), 6);
-        check(amc(&["root 0 0 0 0 0\r\n"]), 5);
-        check(amc(&["a 1\r\na 2\r\n"]), 6);
-        check(amc(&["a 1\r\n"]).replace("\r\n2\r\n", "\r\n3\r\n") + "3\r\n", 6);
-        check("a 1\r\n".into(), 1);
-        // Skipped frame number.
-        check(amc(&["a 1\r\n", "a 1\r\n"]).replace("\r\n2\r\n", "\r\n4\r\n"), 6);
-    }
-
     #[test]
     fn asf_errors_name_the_line() {
         let check = |text: String, want_line: usize| match read_asf(&text) {
@@ -978,19 +603,30 @@ mod tests {
         check(ASF_TEXT.replace("dof rx rz", "dof rx rq"), 31);
     }
 
+    /// Every angle is read into radians once, with the file's unit wherever its `:units`
+    /// section stands: a radian file whose `:units` come last reads as the degree one.
     #[test]
-    fn every_truncation_is_an_error_or_ok_never_a_panic() {
-        let asf = read_asf(ASF_TEXT).unwrap();
-        for (i, _) in ASF_TEXT.char_indices() {
-            if let Err(e) = read_asf(&ASF_TEXT[..i]) {
-                assert!(matches!(e, Error::Text { .. }), "cut at {i}: {e:?}");
+    fn angles_are_radians_whatever_the_unit() {
+        let deg = read_asf(ASF_TEXT).unwrap();
+        let units = "\r\n:units\r\n  mass 1.0\r\n  length 0.45\r\n  angle deg";
+        let rad = ASF_TEXT.replace(units, "") + &units.replace("deg", "rad") + "\r\n";
+        let (half, lo, hi) = (std::f64::consts::FRAC_PI_2, (-160.0f64).to_radians(), 70.0f64.to_radians());
+        let rad = rad
+            .replace("axis 90 0 90 XYZ", &format!("axis {half} 0 {half} XYZ"))
+            .replace("(-160.0 20.0)", &format!("({lo} {})", 20.0f64.to_radians()))
+            .replace("(-70.0 70.0)", &format!("({} {hi})", -hi));
+        let rad = read_asf(&rad).unwrap();
+        assert_eq!(rad.units.angle, AngleUnit::Radian);
+        assert_eq!(deg.bones[0].axis_rad, [half, 0.0, half]);
+        for (a, b) in deg.bones.iter().zip(&rad.bones) {
+            assert_eq!(a.axis_rad, b.axis_rad);
+            assert_eq!(a.limits.len(), b.limits.len());
+            // Equal, infinite limits included, or within rounding.
+            let close = |u: f64, v: f64| u == v || (u - v).abs() < 1e-12;
+            for (x, y) in a.limits.iter().zip(&b.limits) {
+                assert!(close(x.0, y.0) && close(x.1, y.1), "{x:?} {y:?}");
             }
         }
-        let text = amc(&["root 0 0 0 0 0 0\r\na 90\r\nb 0 0\r\n", "root 1 2 3 0 0 0\r\na 0\r\nb 90 90\r\n"]);
-        for (i, _) in text.char_indices() {
-            if let Err(e) = read_amc(&text[..i], &asf, 120.0) {
-                assert!(matches!(e, Error::Text { .. }), "cut at {i}: {e:?}");
-            }
-        }
+        assert_eq!(deg.bones[0].limits[0].0, lo);
     }
 }
