@@ -16,7 +16,7 @@
 //! error per joint and by gap length (frames binned by the longest gap open in them).
 
 use super::data::{Cleaned, SolverShard, clean_for_solving};
-use super::model::Solver;
+use super::file::Solver;
 use crate::NnError;
 use crate::refiner::Refiner;
 use locap_core::gaps::gaps_of;
@@ -150,12 +150,12 @@ pub fn evaluate(
     shards: &[SolverShard],
     refiner: Option<&Refiner>,
 ) -> Result<Vec<MethodScores>, NnError> {
-    let Some(first) = shards.first() else { return Err(NnError::Data("no evaluation shards".into())) };
+    let Some(first) = shards.first() else { return Err(NnError::NoData { what: "evaluation shards" }) };
     let j = first.skeleton.len();
     for (name, s) in solvers {
         let names = |sk: &locap_core::Skeleton| sk.joints().iter().map(|jj| jj.name.clone()).collect::<Vec<_>>();
         if shards.iter().any(|sh| names(&sh.skeleton) != names(&s.meta.skeleton)) {
-            return Err(NnError::Data(format!("{name}: the model's skeleton is not the shards' skeleton")));
+            return Err(NnError::OtherSkeleton { name: name.to_string(), first: "the shards'".into() });
         }
     }
     let cleaned: Vec<Cleaned> =
@@ -280,7 +280,7 @@ pub fn compare_motions(
         .filter_map(|(i, j)| reference.skeleton.index_of(&j.name).map(|r| (i, r)))
         .collect();
     if frames == 0 || pairs.is_empty() {
-        return Err(NnError::Data("the motions share no frames or no joint names".into()));
+        return Err(NnError::NoData { what: "frames or joint names that the motions share" });
     }
     let mut jpe = vec![Mean::default(); pairs.len()];
     let mut joe = vec![Mean::default(); pairs.len()];
