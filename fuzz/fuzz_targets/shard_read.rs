@@ -1,8 +1,10 @@
 //! Arbitrary bytes as a training shard must never panic or allocate without bound, read as a
 //! stream of unknown length ([`ShardReader::new`]) or as a file of known length
-//! ([`ShardReader::with_len`], what nn's loaders use), with every record decoded through the
-//! typed [`Record`] accessors the way nn's refiner and solver loaders decode them. A shard
-//! accepted with its length must then yield exactly the frames its header promises.
+//! ([`ShardReader::with_len`], what `locap train` and `locap eval` open), with every record
+//! decoded through the typed [`Record`] accessors, and the whole shard through the one decoder
+//! both nn consumers call ([`ShardReader::read_clean`] for the refiner, [`ShardReader::read_all`]
+//! for the solver). A shard accepted with its length must then yield exactly the frames its
+//! header promises, and the consumers' takes must have them too.
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
@@ -44,5 +46,19 @@ fuzz_target!(|data: &[u8]| {
             seen += decode(&chunk);
         }
         assert_eq!(seen, promised);
+    }
+    // The consumers' decoder, over a stream (buffers grow with the data) and a length-checked
+    // file (buffers sized from the checked frame count).
+    if let Ok(reader) = ShardReader::new(data) {
+        let _ = reader.read_clean();
+    }
+    if let Ok(reader) = ShardReader::with_len(data, data.len() as u64) {
+        let header = reader.header().clone();
+        // Only a non-finite sample can stop a length-checked shard here.
+        if let Ok(all) = reader.read_all() {
+            assert_eq!((all.clean.frame_count(), all.observed.frame_count()), (header.frames, header.frames));
+            assert_eq!(all.joint_positions_mm.len(), header.frames * header.joints.len());
+            assert_eq!(all.joint_rotations.len(), header.frames * header.joints.len());
+        }
     }
 });

@@ -8,6 +8,7 @@
 
 mod cmd;
 mod inputs;
+mod training;
 mod values;
 
 use clap::{Parser, Subcommand};

@@ -158,3 +158,28 @@ fn shipped_refiner_beats_edm_on_a_held_out_real_take() {
     assert!(f(&neural, "ompe_mean_mm") < f(&edm, "ompe_mean_mm"), "{neural}\n{edm}");
     assert!(f(&neural, "ompe_p95_mm") < f(&edm, "ompe_p95_mm"), "{neural}\n{edm}");
 }
+
+/// Issue 14: a 100-byte shard (a copy cut short) is an error naming the file, exit 1, for both
+/// trainers: never an allocation abort from the frame count its header announces.
+#[test]
+fn a_shard_cut_short_is_an_error_naming_it() {
+    use locap_core::{MarkerName, Take, Vec3};
+    let dir = tempfile::tempdir().unwrap();
+    let names: Vec<MarkerName> = ["A", "B", "C"].iter().map(|n| MarkerName::parse(n)).collect();
+    let take = Take::from_samples(names, &vec![Some(Vec3::new(1.0, 2.0, 3.0)); 3 * 40], 120.0).unwrap();
+    let mut bytes = Vec::new();
+    locap_synth::shard::write_shard(&mut bytes, &take, &take, None, locap_synth::synthesize::LabFrame::ZUpFromYUp)
+        .unwrap();
+    let path = dir.path().join("short.shard");
+    std::fs::write(&path, &bytes[..100]).unwrap();
+    for (what, out) in [("fill", "m.locapnn"), ("solve", "m.locapsv")] {
+        let out =
+            locap().args(["train", what, "--data"]).arg(&path).arg("--out").arg(dir.path().join(out)).output().unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "train {what}: {err}");
+        assert!(
+            err.contains(&format!("{}: ", path.display())) && err.contains("size does not match its header"),
+            "{err}"
+        );
+    }
+}

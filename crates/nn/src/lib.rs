@@ -8,32 +8,37 @@
 //! stable-neighbour graph (per-edge filters, Eq. 4) and 64 frames of context (biLSTM), and
 //! predicts a residual offset for the occluded samples only, trained with Eq. 3.
 //!
-//! * [`model`]: the network (graph convolution, biLSTM, offset head).
-//! * [`limits`]: the documented ceilings on network, batch and window sizes.
+//! * [`refiner`]: the refiner of section 3.1 (network, training data, training, model file
+//!   and inference over overlapping windows).
+//! * [`solver`]: the motion solver of section 3.2 (heterogeneous graph network, baselines,
+//!   training data, training, model file, metrics).
+//! * [`harness`]: the one training loop both use: Adam, learning-rate [`harness::Schedule`],
+//!   validation, checkpoints through a caller's [`harness::Checkpointer`] and resume.
+//! * [`file`]: the model file layout both kinds share.
 //! * [`features`]: a take to network inputs (EDM fill, local frame, normalisation) and back.
-//! * [`refiner`]: the versioned model file and inference over overlapping windows.
+//! * [`limits`]: the documented ceilings on network, batch and window sizes.
 //! * [`refiners`]: refiners as fillers of the clean stage (`locap_clean::Filler`).
 //! * [`shipped`]: the trained refiners and solver built into locap.
-//! * [`solver`]: the motion solver of section 3.2 (heterogeneous graph network, baselines,
-//!   training, metrics).
-//! * [`train`]: shard data loading with on-the-fly Eq. 6 augmentation, Adam, learning-rate
-//!   schedule, validation, checkpoints and resume, loss curve.
+//!
+//! No module reads or writes files: training takes `Take`s and shard readers, checkpoints go
+//! to a [`harness::Checkpointer`], and reports give their loss curves as data series
+//! ([`harness::LossCurve`]) for the caller to draw.
 
 pub mod features;
+pub mod file;
+pub mod harness;
 pub mod limits;
-pub mod model;
 pub mod refiner;
 pub mod refiners;
 pub mod shipped;
 pub mod solver;
-pub mod train;
 
 pub use burn;
-pub use refiner::{ModelMeta, Refiner, refine_all, refine_all_of};
+pub use harness::{Checkpointer, Checkpoints, Schedule};
+pub use refiner::{ModelMeta, Refiner, TrainConfig, TrainReport, refine_all, refine_all_of};
 pub use refiners::Refiners;
-pub use train::{TrainConfig, TrainReport};
 
-/// Errors of the refiner.
+/// Errors of the refiner and the solver.
 #[derive(Debug, thiserror::Error)]
 pub enum NnError {
     /// The model's markers are not all in the take.
@@ -78,18 +83,140 @@ pub enum NnError {
     /// Augmentation settings out of range.
     #[error(transparent)]
     Augment(#[from] locap_synth::augment::AugmentError),
-    /// A file could not be read or written.
-    #[error("{path}: {source}")]
-    Io {
-        /// The file.
-        path: String,
+    /// A setting out of range.
+    #[error("{what} {value} must be {expected}")]
+    Setting {
+        /// The setting.
+        what: &'static str,
+        /// Its value.
+        value: String,
+        /// What it must be.
+        expected: &'static str,
+    },
+    /// More graph neighbours than the markers allow.
+    #[error("{neighbours} graph neighbours need more than {markers} markers")]
+    TooFewMarkers {
+        /// Neighbours per marker asked for.
+        neighbours: usize,
+        /// Markers of the data.
+        markers: usize,
+    },
+    /// Nothing of something needed.
+    #[error("no {what}")]
+    NoData {
+        /// What is missing ("training takes").
+        what: &'static str,
+    },
+    /// No take is as long as a training window.
+    #[error("no training take has {window} frames (one window)")]
+    TooShortForWindow {
+        /// Frames of a window.
+        window: usize,
+    },
+    /// No take is long enough to hold out validation frames.
+    #[error(
+        "no take is long enough to hold out validation frames ({needed} frames needed; use a validation fraction of 0)"
+    )]
+    TooShortForValidation {
+        /// Frames needed.
+        needed: usize,
+    },
+    /// No training example could be built from the data.
+    #[error("no training example could be built (the local frame is never defined?)")]
+    NoExamples,
+    /// A loss that is not finite (its gradients would spoil the weights).
+    #[error("the loss is not finite at step {step}; lower the learning rate")]
+    NonFiniteLoss {
+        /// The step (0-based).
+        step: usize,
+    },
+    /// Something wrong with one take or shard of the data.
+    #[error("{name}: {source}")]
+    InTake {
+        /// The take (its path).
+        name: String,
+        /// What is wrong.
+        #[source]
+        source: Box<NnError>,
+    },
+    /// A take that cannot be built from the data.
+    #[error("{name}: {source}")]
+    Take {
+        /// The take (its path).
+        name: String,
+        /// What is wrong.
+        #[source]
+        source: locap_core::TakeError,
+    },
+    /// A solver shard written without a skeleton.
+    #[error("{name}: the shard has no skeleton (write it again with this locap's `locap synth`)")]
+    NoSkeleton {
+        /// The shard.
+        name: String,
+    },
+    /// A solver shard written without joint motion.
+    #[error("{name}: the shard has no joint motion")]
+    NoMotion {
+        /// The shard.
+        name: String,
+    },
+    /// A shard (or model) with another skeleton than the first shard's.
+    #[error("{name}: another skeleton than {first}")]
+    OtherSkeleton {
+        /// The shard.
+        name: String,
+        /// Whose skeleton it should have.
+        first: String,
+    },
+    /// A skeleton or motion that cannot be built.
+    #[error(transparent)]
+    Skeleton(#[from] locap_core::SkeletonError),
+    /// A take without frames.
+    #[error("the take has no frames")]
+    EmptyTake,
+    /// [`refine_all`] without a refiner.
+    #[error("no refiner given")]
+    NoRefiner,
+    /// A checkpoint that cannot be resumed.
+    #[error("{at}: {source}")]
+    Checkpoint {
+        /// Where it is kept.
+        at: String,
+        /// What is wrong.
+        #[source]
+        source: Box<NnError>,
+    },
+    /// A checkpoint of another run.
+    #[error("the checkpoint has other markers or another network size than this run")]
+    CheckpointMismatch,
+    /// A checkpoint model without the optimizer state saved beside it.
+    #[error("{at}: the optimizer state of the checkpoint is missing")]
+    MissingCheckpoint {
+        /// Where it should be.
+        at: String,
+    },
+    /// A checkpoint that cannot be read or written.
+    #[error("{at}: {source}")]
+    CheckpointIo {
+        /// Where it is kept.
+        at: String,
         /// What failed.
+        #[source]
         source: std::io::Error,
     },
     /// The fill before solving failed (a refiner that does not fit the take).
     #[error(transparent)]
     Fill(#[from] locap_clean::FillError),
-    /// Training data or settings that cannot be used.
-    #[error("{0}")]
-    Data(String),
+    /// Adam's state cannot be saved or restored.
+    #[error("{at}: optimizer state: {source}")]
+    OptimizerState {
+        /// Where it is kept.
+        at: String,
+        /// What burn said.
+        #[source]
+        source: burn::store::RecordError,
+    },
+    /// A report that cannot be stored in a model file.
+    #[error("training report: {0}")]
+    Report(#[source] serde_json::Error),
 }

@@ -53,6 +53,32 @@ pub fn check(what: &'static str, value: usize, max: usize) -> Result<(), NnError
     if value > max { Err(NnError::Limit { what, value: value as u64, max: max as u64 }) } else { Ok(()) }
 }
 
+/// Each of `settings` (name, value) against the floor `min`.
+///
+/// # Errors
+/// [`NnError::Setting`] for the first below it.
+pub fn at_least(min: usize, settings: &[(&'static str, usize)]) -> Result<(), NnError> {
+    match settings.iter().find(|(_, value)| *value < min) {
+        Some((what, value)) => Err(NnError::Setting {
+            what,
+            value: value.to_string(),
+            expected: if min == 1 { "1 or more" } else { "2 or more" },
+        }),
+        None => Ok(()),
+    }
+}
+
+/// The fraction of every take held out for validation: in `0..0.9`.
+///
+/// # Errors
+/// [`NnError::Setting`] outside it.
+pub fn validation_fraction(value: f64) -> Result<(), NnError> {
+    if (0.0..0.9).contains(&value) {
+        return Ok(());
+    }
+    Err(NnError::Setting { what: "validation fraction", value: value.to_string(), expected: "in 0..0.9" })
+}
+
 /// A network's weight count (as `f64`: sizes from a file may overflow integer products)
 /// against [`MAX_WEIGHTS`].
 ///

@@ -1,17 +1,17 @@
 //! Issue 14, "never lose a take": a 100-byte shard, or one whose header lies about its frame
 //! count, aborted `locap train fill` and `locap eval` (exit 134) because nn decoded shards by
-//! hand and reserved what the header promised. Both data loaders now go through synth's
-//! bounded reader: a clear error naming the file. Sizes from a command line get documented
-//! ceilings ([`locap_nn::limits`]) before anything is allocated.
+//! hand and reserved what the header promised. Both consumers now decode through synth's one
+//! bounded decoder (`ShardReader::read_clean`, `read_all`); the files themselves are the CLI's
+//! (`crates/cli/tests/train.rs` gives it the 100-byte shard). Sizes from a command line get
+//! documented ceilings ([`locap_nn::limits`]) before anything is allocated.
 
 use locap_core::{Joint, MarkerName, Motion, Quat, Skeleton, Take, Vec3};
 use locap_nn::NnError;
-use locap_nn::solver::{SolverData, SolverTrainConfig};
-use locap_nn::train::TrainingData;
+use locap_nn::refiner::{NetConfig, TrainingData, shard_take};
+use locap_nn::solver::{SolverData, SolverTrainConfig, solver_shard};
 use locap_nn::{TrainConfig, limits};
-use locap_synth::shard::{MAGIC, VERSION, write_shard};
+use locap_synth::shard::{MAGIC, ShardReader, VERSION, write_shard};
 use locap_synth::synthesize::LabFrame;
-use std::path::{Path, PathBuf};
 
 /// A real shard with motion: 3 markers, 2 joints, 40 frames.
 fn shard_bytes() -> Vec<u8> {
@@ -44,52 +44,53 @@ fn with_frames(bytes: &[u8], frames: u64) -> Vec<u8> {
     out
 }
 
-fn write(dir: &Path, name: &str, bytes: &[u8]) -> PathBuf {
-    let path = dir.join(name);
-    std::fs::write(&path, bytes).unwrap();
-    path
-}
-
-/// Both loaders, on one file: the refiner's and the solver's.
-fn load_errors(path: &Path) -> [NnError; 2] {
-    [TrainingData::from_paths(&[path.to_path_buf()]).unwrap_err(), SolverData::from_path(path).unwrap_err()]
+/// Both consumers on `bytes` read as a file of their length: the refiner's and the solver's.
+fn decode(bytes: &[u8]) -> [Result<(), NnError>; 2] {
+    let open = || {
+        ShardReader::with_len(bytes, bytes.len() as u64)
+            .map_err(|source| NnError::ShardFile { path: "x.shard".into(), source })
+    };
+    [open().and_then(|r| shard_take(r, "x.shard")).map(drop), open().and_then(|r| solver_shard(r, "x.shard")).map(drop)]
 }
 
 #[test]
 fn a_good_shard_loads_in_both() {
-    let dir = tempfile::tempdir().unwrap();
-    let path = write(dir.path(), "good.shard", &shard_bytes());
-    let data = TrainingData::from_paths(std::slice::from_ref(&path)).unwrap();
+    let bytes = shard_bytes();
+    let reader = ShardReader::with_len(bytes.as_slice(), bytes.len() as u64).unwrap();
+    let data = TrainingData::new(vec![shard_take(reader, "good.shard").unwrap()], vec!["good.shard".into()]).unwrap();
     assert_eq!((data.frames(), data.markers.len()), (40, 3));
-    let solver = SolverData::from_path(&path).unwrap();
+    let reader = ShardReader::with_len(bytes.as_slice(), bytes.len() as u64).unwrap();
+    let solver = SolverData::new(vec![solver_shard(reader, "good.shard").unwrap()]).unwrap();
     assert_eq!(solver.shards[0].joint_positions_mm.len(), 80);
     assert_eq!(solver.shards[0].observed.frame_count(), 40);
 }
 
 #[test]
-fn a_100_byte_shard_is_an_error_naming_the_file() {
-    let dir = tempfile::tempdir().unwrap();
-    let path = write(dir.path(), "short.shard", &shard_bytes()[..100]);
-    for e in load_errors(&path) {
-        let text = e.to_string();
-        assert!(matches!(e, NnError::ShardFile { .. }), "{e:?}");
-        assert!(text.starts_with(&path.display().to_string()), "{text}");
-        assert!(text.contains("size does not match its header"), "{text}");
+fn a_shard_cut_short_or_lying_about_its_frames_is_an_error_naming_it() {
+    let bytes = shard_bytes();
+    let cases = [bytes[..100].to_vec(), with_frames(&bytes, 1_000_000_000_000), with_frames(&bytes, 39)];
+    for bad in cases {
+        for e in decode(&bad) {
+            let e = e.unwrap_err();
+            assert!(matches!(e, NnError::ShardFile { .. }), "{e:?}");
+            assert!(e.to_string().starts_with("x.shard: "), "{e}");
+        }
     }
+    // A stream of unknown length that lies: the decoder ends at the data, it does not reserve.
+    let liar = with_frames(&bytes, 1_000_000_000_000);
+    let e = shard_take(ShardReader::new(liar.as_slice()).unwrap(), "x.shard").unwrap_err();
+    assert!(e.to_string().contains("cut short"), "{e}");
 }
 
 #[test]
-fn a_header_lying_about_its_frames_is_an_error_naming_the_file() {
-    let dir = tempfile::tempdir().unwrap();
-    let bytes = shard_bytes();
-    for frames in [1_000_000_000_000u64, 41, 39, u64::MAX / 4] {
-        let path = write(dir.path(), &format!("liar-{frames}.shard"), &with_frames(&bytes, frames));
-        for e in load_errors(&path) {
-            let text = e.to_string();
-            assert!(text.starts_with(&path.display().to_string()), "{text}");
-            assert!(text.contains("frames"), "{text}");
-        }
-    }
+fn a_shard_without_motion_is_refused_by_the_solver_by_name() {
+    let names: Vec<MarkerName> = ["A", "B", "C"].iter().map(|n| MarkerName::parse(n)).collect();
+    let take = Take::from_samples(names, &vec![Some(Vec3::new(1.0, 2.0, 3.0)); 30], 120.0).unwrap();
+    let mut bytes = Vec::new();
+    write_shard(&mut bytes, &take, &take, None, LabFrame::ZUpFromYUp).unwrap();
+    let reader = ShardReader::with_len(bytes.as_slice(), bytes.len() as u64).unwrap();
+    let e = solver_shard(reader, "clean-only.shard").unwrap_err();
+    assert!(matches!(&e, NnError::NoSkeleton { name } if name == "clean-only.shard"), "{e:?}");
 }
 
 /// nn's two decoders on every prefix of a real shard and on the shard with each header byte
@@ -97,13 +98,8 @@ fn a_header_lying_about_its_frames_is_an_error_naming_the_file() {
 /// which cannot build nn under cargo-fuzz; see `fuzz/README.md`).
 #[test]
 fn every_cut_and_every_header_byte_is_an_error_or_data() {
-    use locap_nn::solver::data::solver_shard;
-    use locap_nn::train::read_shard;
-    use locap_synth::shard::ShardReader;
     let decode = |bytes: &[u8]| -> (bool, bool) {
-        let open = || ShardReader::with_len(bytes, bytes.len() as u64);
-        let take = open().map_err(NnError::from).and_then(|r| read_shard(r, "x.shard"));
-        let solver = open().map_err(NnError::from).and_then(|r| solver_shard(r, "x.shard"));
+        let [take, solver] = decode(bytes);
         (take.is_ok(), solver.is_ok())
     };
     let bytes = shard_bytes();
@@ -128,17 +124,23 @@ fn sizes_above_their_ceilings_are_refused_before_training() {
         other => panic!("{other:?}"),
     };
     let fill = |c: TrainConfig| limit(c.validate().unwrap_err());
-    assert_eq!(fill(TrainConfig { hidden: 100_000, ..TrainConfig::default() }), ("hidden", 100_000, 2048));
+    let net = |hidden, channels| NetConfig { hidden, channels, ..TrainConfig::default().net };
+    assert_eq!(fill(TrainConfig { net: net(100_000, 16), ..TrainConfig::default() }), ("hidden", 100_000, 2048));
     assert_eq!(fill(TrainConfig { batch: 100_000, ..TrainConfig::default() }).0, "batch");
-    assert_eq!(fill(TrainConfig { channels: 100_000, ..TrainConfig::default() }).0, "channels");
+    assert_eq!(fill(TrainConfig { net: net(128, 100_000), ..TrainConfig::default() }).0, "channels");
     assert_eq!(fill(TrainConfig { window: 1 << 30, ..TrainConfig::default() }).0, "window");
     assert!(TrainConfig::default().validate().is_ok());
     let solve = |c: SolverTrainConfig| limit(c.validate().unwrap_err());
-    assert_eq!(solve(SolverTrainConfig { global: 100_000, ..SolverTrainConfig::default() }).0, "global");
-    assert_eq!(solve(SolverTrainConfig { channels: 100_000, ..SolverTrainConfig::default() }).0, "channels");
+    let net = |global, channels| locap_nn::solver::NetConfig { global, channels, ..SolverTrainConfig::default().net };
+    assert_eq!(solve(SolverTrainConfig { net: net(100_000, 32), ..SolverTrainConfig::default() }).0, "global");
+    assert_eq!(solve(SolverTrainConfig { net: net(128, 100_000), ..SolverTrainConfig::default() }).0, "channels");
     assert_eq!(
         solve(SolverTrainConfig { batch: 100_000, ..SolverTrainConfig::default() }),
         ("batch", 100_000, limits::MAX_BATCH_FRAMES as u64)
     );
     assert!(SolverTrainConfig::default().validate().is_ok());
+    // Out of range (not a ceiling): typed, named.
+    let e = TrainConfig { window: 1, ..TrainConfig::default() }.validate().unwrap_err();
+    assert!(matches!(e, NnError::Setting { what: "window", .. }), "{e:?}");
+    assert_eq!(e.to_string(), "window 1 must be 2 or more");
 }

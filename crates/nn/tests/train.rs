@@ -4,11 +4,13 @@
 
 use locap_clean::local_frame::FrameDefinition;
 use locap_core::{Joint, Motion, Quat, Skeleton, Take, Vec3};
-use locap_nn::train::{Checkpoints, TrainingData, train};
-use locap_nn::{Refiner, TrainConfig};
+use locap_nn::harness::{Checkpoints, MemoryCheckpointer, Schedule};
+use locap_nn::refiner::{NetConfig, TrainingData, shard_take, train};
+use locap_nn::{NnError, Refiner, TrainConfig};
 use locap_synth::augment::AugmentConfig;
 use locap_synth::gap_model::GapModel;
 use locap_synth::layout::{Layout, LayoutMarker, Region};
+use locap_synth::shard::ShardReader;
 use locap_synth::shard::write_shard;
 use locap_synth::synthesize::{LabFrame, SynthConfig, Variation, synthesize};
 use rand::SeedableRng;
@@ -112,16 +114,12 @@ fn config() -> TrainConfig {
         window: 32,
         margin: 16,
         batch: 16,
-        steps: 300,
-        learning_rate: 2e-3,
-        warmup_steps: 5,
+        schedule: Schedule { steps: 300, learning_rate: 2e-3, warmup_steps: 5 },
         validation_windows: 24,
         validate_every: 50,
         checkpoint_every: 150,
         augment: AugmentConfig { missing_fraction: Some(0.15), shift_probability: 0.0, ..AugmentConfig::default() },
-        channels: 8,
-        hidden: 32,
-        neighbours: 4,
+        net: NetConfig { channels: 8, hidden: 32, neighbours: 4 },
         frame: FrameDefinition::cmu_waist(),
         ..TrainConfig::default()
     }
@@ -130,18 +128,18 @@ fn config() -> TrainConfig {
 #[test]
 fn a_tiny_refiner_learns_from_a_synthetic_shard() {
     let _one_at_a_time = TRAINING.lock().unwrap_or_else(|e| e.into_inner());
-    let dir = tempfile::tempdir().unwrap();
     let take = clean_take(3, 1500);
-    let mut file = std::fs::File::create(dir.path().join("tiny.shard")).unwrap();
-    write_shard(&mut file, &take, &take, None, LabFrame::ZUpFromYUp).unwrap();
-    drop(file);
-    let data = TrainingData::from_path(dir.path()).unwrap();
+    let mut bytes = Vec::new();
+    write_shard(&mut bytes, &take, &take, None, LabFrame::ZUpFromYUp).unwrap();
+    let shard = shard_take(ShardReader::with_len(bytes.as_slice(), bytes.len() as u64).unwrap(), "tiny.shard");
+    let data = TrainingData::new(vec![shard.unwrap()], vec!["tiny.shard".into()]).unwrap();
     assert_eq!((data.takes.len(), data.markers.len(), data.frames()), (1, 26, 1500));
 
-    let checkpoints = Checkpoints { dir: dir.path().join("run"), resume: false };
+    let store = MemoryCheckpointer::default();
+    let checkpoints = Checkpoints { store: &store, resume: false };
     let mut calls = 0;
     let (refiner, report) =
-        train(&data, &config(), &GapModel::builtin(), Some(&checkpoints), &mut |_| calls += 1).unwrap();
+        train(&data, &config(), &GapModel::builtin(), Some(checkpoints), &mut |_| calls += 1).unwrap();
     assert_eq!((calls, report.steps), (300, 300));
     let edm = report.edm_validation_mm.unwrap();
     let first = report.validation_mm[0].1;
@@ -153,8 +151,10 @@ fn a_tiny_refiner_learns_from_a_synthetic_shard() {
     // across platforms, so the test asks that training does not spoil the fill.
     assert!(last < edm * 1.02, "training must not spoil EDM's fill on held-out frames: {last} vs {edm}");
     assert!(last < first, "validation loss falls: {:?}", report.validation_mm);
-    let curve = report.loss_curve("tiny").unwrap().render(locap_view::plot::Format::Svg, (800, 480)).unwrap();
-    assert!(String::from_utf8(curve).unwrap().contains("validation"));
+    let curve = report.loss_curve();
+    let names: Vec<&str> = curve.series.iter().map(|s| s.0.as_str()).collect();
+    assert_eq!(names, ["training", "validation", "EDM alone (validation)"]);
+    assert_eq!(curve.series[1].1, report.validation_mm.iter().map(|(s, v)| (*s as f64, *v)).collect::<Vec<_>>());
 
     // The model file round-trips to the same fill; observed samples are never touched.
     let mut raw = clean_take(7, 400);
@@ -179,66 +179,59 @@ fn a_tiny_refiner_learns_from_a_synthetic_shard() {
     }
 
     // Resuming from the last checkpoint continues the run.
-    let more = TrainConfig { steps: 302, ..config() };
+    let mut more = config();
+    more.schedule.steps = 302;
     let resumed = Checkpoints { resume: true, ..checkpoints };
-    let (_, report2) = train(&data, &more, &GapModel::builtin(), Some(&resumed), &mut |_| {}).unwrap();
+    let (_, report2) = train(&data, &more, &GapModel::builtin(), Some(resumed), &mut |_| {}).unwrap();
     assert_eq!((report2.steps, report2.steps_this_run), (302, 2));
     assert_eq!(report2.validation_mm[..3], report.validation_mm[..3]);
 }
 
+/// The first take's markers are the model's; later takes are cut to them (in its order), and
+/// one lacking any is refused by name (finding and reading the files is the CLI's, tested
+/// there).
 #[test]
-fn training_data_mixes_shards_and_real_c3d_takes() {
-    let dir = tempfile::tempdir().unwrap();
-    let synthetic = dir.path().join("synthetic");
-    std::fs::create_dir(&synthetic).unwrap();
+fn training_data_takes_the_first_takes_markers() {
     let take = clean_take(3, 200);
-    let mut file = std::fs::File::create(synthetic.join("a.shard")).unwrap();
-    write_shard(&mut file, &take, &take, None, LabFrame::ZUpFromYUp).unwrap();
-    drop(file);
-    // `locap synth` leaves a C3D copy beside each shard: it must not be read a second time.
-    let c3d = |take: &Take, path: &std::path::Path| {
-        locap_io::c3d::write_path(&locap_io::c3d::C3dFile::from_take(take).unwrap(), path).unwrap()
-    };
-    c3d(&take, &synthetic.join("a.c3d"));
-    // A "real" take: another order, an unlabeled point, real gaps.
-    let real = dir.path().join("real");
-    std::fs::create_dir(&real).unwrap();
     let mut names = take.markers().to_vec();
     names.reverse();
-    names.push(locap_core::MarkerName::parse("*3"));
-    let samples: Vec<Option<Vec3>> = (0..150)
+    let samples: Vec<Option<Vec3>> = (0..50)
         .flat_map(|f| {
-            let take = &take;
-            names.iter().map(move |n| match take.marker_index(&n.label) {
-                Some(k) if !(n.label == "LELB" && (50..80).contains(&f)) => take.position_mm(f, k),
-                _ => (n.is_unlabeled()).then(|| Vec3::new(1.0, 2.0, 3.0)),
-            })
+            names.iter().map(|n| take.position_mm(f, take.marker_index(&n.label).unwrap())).collect::<Vec<_>>()
         })
         .collect();
-    c3d(&Take::from_samples(names, &samples, 120.0).unwrap(), &real.join("b.c3d"));
-
-    let data = TrainingData::from_paths(&[real.clone(), synthetic.clone()]).unwrap();
-    assert_eq!((data.takes.len(), data.markers.len(), data.frames()), (2, 26, 350), "{:?}", data.names);
-    assert!(data.names[0].ends_with("a.shard") && data.names[1].ends_with("b.c3d"), "{:?}", data.names);
-    let (shard, real_take) = (&data.takes[0], &data.takes[1]);
-    let lelb = real_take.marker_index("LELB").unwrap();
-    assert_eq!(real_take.marker_index("LELB"), shard.marker_index("LELB"));
-    assert_eq!(
-        real_take.position_mm(10, lelb).map(|p| (p - take.position_mm(10, lelb).unwrap()).norm() < 0.1),
-        Some(true)
-    );
-    assert!(!real_take.is_valid(60, lelb));
-    // A take lacking a marker of the first one is refused by name.
+    let reversed = Take::from_samples(names, &samples, 120.0).unwrap();
+    let data = TrainingData::new(vec![take.clone(), reversed], vec!["a".into(), "b".into()]).unwrap();
+    assert_eq!(data.takes[1].markers(), take.markers());
+    assert_eq!(data.takes[1].position_mm(7, 4), take.position_mm(7, 4));
     let short = take.slice_frames(0..100);
     let mut renamed = short.markers().to_vec();
     renamed[0].label = "NEW".into();
     let mut short = short;
     short.set_markers(renamed).unwrap();
-    let e = TrainingData::new(vec![take.clone(), short], vec!["a".into(), "b".into()]).unwrap_err().to_string();
-    assert!(e.contains("b:") && e.contains(&take.markers()[0].label), "{e}");
-    let empty = tempfile::tempdir().unwrap();
-    let e = TrainingData::from_paths(&[empty.path().to_path_buf()]).unwrap_err().to_string();
-    assert!(e.contains("no .shard files"), "{e}");
+    let e = TrainingData::new(vec![take.clone(), short], vec!["a".into(), "b".into()]).unwrap_err();
+    assert!(matches!(&e, NnError::InTake { name, .. } if name == "b"), "{e:?}");
+    assert!(e.to_string().contains(&take.markers()[0].label), "{e}");
+    assert!(matches!(TrainingData::new(vec![], vec![]), Err(NnError::NoData { .. })));
+}
+
+/// A loss that is not finite stops the run at once (its gradients would spoil every later
+/// step), for the refiner as for the solver: the harness checks it.
+#[test]
+fn a_loss_that_is_not_finite_stops_training() {
+    let _one_at_a_time = TRAINING.lock().unwrap_or_else(|e| e.into_inner());
+    let take = clean_take(1, 300);
+    // Coordinates a float holds, but whose squared distances it does not.
+    let scaled: Vec<Option<Vec3>> = (0..take.frame_count())
+        .flat_map(|f| (0..take.marker_count()).map(move |k| (f, k)))
+        .map(|(f, k)| take.position_mm(f, k).map(|p| p * 1e36))
+        .collect();
+    let huge = Take::from_samples(take.markers().to_vec(), &scaled, 120.0).unwrap();
+    let data = TrainingData::new(vec![huge], vec!["huge".into()]).unwrap();
+    let mut cfg = TrainConfig { validation_fraction: 0.0, ..config() };
+    cfg.schedule.steps = 3;
+    let e = train(&data, &cfg, &GapModel::builtin(), None, &mut |_| {}).unwrap_err();
+    assert!(matches!(e, NnError::NonFiniteLoss { step: 0 }), "{e:?}");
 }
 
 #[test]
@@ -246,7 +239,8 @@ fn models_refuse_other_marker_sets_and_bad_files() {
     let _one_at_a_time = TRAINING.lock().unwrap_or_else(|e| e.into_inner());
     let take = clean_take(1, 300);
     let data = TrainingData::new(vec![take.clone()], vec!["t".into()]).unwrap();
-    let cfg = TrainConfig { steps: 1, validation_fraction: 0.0, ..config() };
+    let mut cfg = TrainConfig { validation_fraction: 0.0, ..config() };
+    cfg.schedule.steps = 1;
     let (refiner, _) = train(&data, &cfg, &GapModel::builtin(), None, &mut |_| {}).unwrap();
     let other = take.slice_frames(0..100);
     let mut names = other.markers().to_vec();
@@ -264,18 +258,23 @@ fn models_refuse_other_marker_sets_and_bad_files() {
     assert!(Refiner::from_bytes(&bytes, &device).is_err());
 }
 
-/// Writes `n` shards of the tiny body (clean markers, Eq. 6-corrupted markers, motion with its
-/// skeleton) under `dir`, one subject and motion phase per shard.
-fn solver_shards(dir: &std::path::Path, n: u64, frames: usize) {
-    for seed in 0..n {
-        let mut rng = StdRng::seed_from_u64(seed);
-        let config = SynthConfig { lab: LabFrame::ZUpFromYUp, ..SynthConfig::default() };
-        let synth = synthesize(&motion(frames, 120.0, 5.0 * seed as f64), &layout(), &config, &mut rng).unwrap();
-        let augment = AugmentConfig { missing_fraction: Some(0.05), ..AugmentConfig::default() };
-        let observed = locap_synth::augment::augment(&synth.take, &GapModel::builtin(), &augment, &mut rng).unwrap();
-        let mut file = std::fs::File::create(dir.join(format!("s{seed}.shard"))).unwrap();
-        write_shard(&mut file, &synth.take, &observed.take, Some(&synth.motion), LabFrame::ZUpFromYUp).unwrap();
-    }
+/// `n` shards of the tiny body (clean markers, Eq. 6-corrupted markers, motion with its
+/// skeleton), one subject and motion phase per shard, written and read back.
+fn solver_shards(n: u64, frames: usize) -> Vec<locap_nn::solver::SolverShard> {
+    (0..n)
+        .map(|seed| {
+            let mut rng = StdRng::seed_from_u64(seed);
+            let config = SynthConfig { lab: LabFrame::ZUpFromYUp, ..SynthConfig::default() };
+            let synth = synthesize(&motion(frames, 120.0, 5.0 * seed as f64), &layout(), &config, &mut rng).unwrap();
+            let augment = AugmentConfig { missing_fraction: Some(0.05), ..AugmentConfig::default() };
+            let observed =
+                locap_synth::augment::augment(&synth.take, &GapModel::builtin(), &augment, &mut rng).unwrap();
+            let mut bytes = Vec::new();
+            write_shard(&mut bytes, &synth.take, &observed.take, Some(&synth.motion), LabFrame::ZUpFromYUp).unwrap();
+            let reader = ShardReader::with_len(bytes.as_slice(), bytes.len() as u64).unwrap();
+            locap_nn::solver::solver_shard(reader, &format!("s{seed}.shard")).unwrap()
+        })
+        .collect()
 }
 
 /// A tiny graph solver learns (validation joint error falls), beats its untrained self on
@@ -286,36 +285,33 @@ fn a_tiny_solver_learns_and_solves_takes() {
     use locap_eval::solver::evaluate;
     use locap_nn::solver::{Solver, SolverData, SolverTrainConfig, Variant, train_solver};
     let _one_at_a_time = TRAINING.lock().unwrap_or_else(|e| e.into_inner());
-    let dir = tempfile::tempdir().unwrap();
-    let (train_dir, test_dir) = (dir.path().join("train"), dir.path().join("test"));
-    std::fs::create_dir_all(&train_dir).unwrap();
-    std::fs::create_dir_all(&test_dir).unwrap();
-    solver_shards(&train_dir, 3, 900);
-    solver_shards(&test_dir, 1, 300);
-    let data = SolverData::from_path(&train_dir).unwrap();
+    let data = SolverData::new(solver_shards(3, 900)).unwrap();
     assert_eq!((data.shards.len(), data.markers.len(), data.skeleton.len()), (3, 26, 14));
     let config = SolverTrainConfig {
         batch: 64,
-        steps: 200,
-        learning_rate: 3e-3,
-        warmup_steps: 10,
+        schedule: Schedule { steps: 200, learning_rate: 3e-3, warmup_steps: 10 },
         validate_every: 50,
-        channels: 8,
-        global: 16,
+        net: locap_nn::solver::NetConfig { channels: 8, global: 16, ..SolverTrainConfig::default().net },
         validation_frames: 256,
         ..SolverTrainConfig::default()
     };
-    let checkpoints = Checkpoints { dir: dir.path().join("run"), resume: false };
-    let (solver, report) = train_solver(&data, &config, Some(&checkpoints), &mut |_| {}).unwrap();
+    let store = MemoryCheckpointer::default();
+    let checkpoints = Checkpoints { store: &store, resume: false };
+    let mut validated = Vec::new();
+    let (solver, report) = train_solver(&data, &config, Some(checkpoints), &mut |p| {
+        validated.extend(p.validation.map(|v| (p.step, v.jpe_mm)));
+    })
+    .unwrap();
+    assert_eq!(validated, report.validation_jpe_mm);
     eprintln!("validation JPE {:?}, JOE {:?}", report.validation_jpe_mm, report.validation_joe_deg);
     let jpe = &report.validation_jpe_mm;
     assert!(jpe.last().unwrap().1 < 0.5 * jpe[0].1, "validation JPE falls: {jpe:?}");
     assert!(report.training_loss.last().unwrap().1 < report.training_loss[0].1);
 
     // Held-out shard, solved as `locap solve` solves: better than the untrained network.
-    let test = SolverData::from_path(&test_dir).unwrap();
-    let untrained =
-        train_solver(&data, &SolverTrainConfig { steps: 1, ..config.clone() }, None, &mut |_| {}).unwrap().0;
+    let test = SolverData::new(solver_shards(1, 300)).unwrap();
+    let steps = |n: usize| SolverTrainConfig { schedule: Schedule { steps: n, ..config.schedule }, ..config.clone() };
+    let untrained = train_solver(&data, &steps(1), None, &mut |_| {}).unwrap().0;
     let scores =
         evaluate(&[("trained".into(), &solver), ("untrained".into(), &untrained)], &test.shards, None).unwrap();
     eprintln!("{}", locap_eval::solver::table("body", &scores));
@@ -348,10 +344,10 @@ fn a_tiny_solver_learns_and_solves_takes() {
 
     // Resume continues the run; the MLP baseline trains in the same harness.
     let resumed = Checkpoints { resume: true, ..checkpoints };
-    let (_, r2) =
-        train_solver(&data, &SolverTrainConfig { steps: 202, ..config.clone() }, Some(&resumed), &mut |_| {}).unwrap();
+    let (_, r2) = train_solver(&data, &steps(202), Some(resumed), &mut |_| {}).unwrap();
     assert_eq!((r2.steps, r2.steps_this_run), (202, 2));
-    let mlp = SolverTrainConfig { variant: Variant::Mlp, steps: 20, ..config };
+    assert_eq!(r2.validation_jpe_mm[..4], report.validation_jpe_mm[..4]);
+    let mlp = SolverTrainConfig { variant: Variant::Mlp, ..steps(20) };
     let (m, _) = train_solver(&data, &mlp, None, &mut |_| {}).unwrap();
     assert_eq!(m.meta.architecture.variant, Variant::Mlp);
 }

@@ -27,7 +27,10 @@
 //!
 //! Fixed-size records make the file seekable (`offset = data_start + frame * R * 4`) and
 //! memory-mappable; [`ShardReader`] streams it in chunks from any `Read`, and [`Record`] is
-//! the one decoder of the record layout (consumers never index records by hand).
+//! the one decoder of the record layout (consumers never index records by hand). Consumers
+//! that want the whole take (training reads every shard once) call
+//! [`ShardReader::read_clean`] or [`ShardReader::read_all`], the one place where records
+//! become [`Take`]s and joint arrays.
 //!
 //! # Reading untrusted shards
 //! A shard is input like any other: the reader checks every count in the header against
@@ -37,7 +40,7 @@
 //! record is refused too: the writer never makes one, so it means a header that undercounts.
 
 use crate::synthesize::LabFrame;
-use locap_core::{Motion, Skeleton, Take};
+use locap_core::{MarkerName, Motion, Quat, Skeleton, Take, TakeError, Vec3};
 use serde::{Deserialize, Serialize};
 use std::io::{Read, Write};
 
@@ -79,6 +82,18 @@ pub enum ShardError {
     /// The takes and motion given to the writer do not line up.
     #[error("cannot write shard: {0}")]
     Shape(String),
+    /// Memory cannot hold the samples the (length-checked) header announces.
+    #[error("cannot hold the shard's {samples} samples")]
+    Memory {
+        /// Samples (marker or joint values per frame, times frames) announced.
+        samples: usize,
+        /// What the allocator said.
+        #[source]
+        source: std::collections::TryReserveError,
+    },
+    /// The records do not make a take (a frame rate or sample the take refuses).
+    #[error("the shard's markers do not make a take")]
+    Take(#[source] TakeError),
 }
 
 /// The JSON header of a shard.
@@ -279,6 +294,24 @@ pub struct ShardReader<R: Read> {
     reader: R,
     header: ShardHeader,
     next_frame: usize,
+    /// The frame count was checked against the file's length ([`ShardReader::with_len`]), so
+    /// buffers may be sized from it.
+    length_checked: bool,
+}
+
+/// Everything a shard holds, decoded ([`ShardReader::read_all`]).
+#[derive(Debug, Clone)]
+pub struct ShardContents {
+    /// The header.
+    pub header: ShardHeader,
+    /// Ground-truth markers, lab frame.
+    pub clean: Take,
+    /// Corrupted markers (occluded samples missing), lab frame.
+    pub observed: Take,
+    /// Global joint positions, lab frame, `[frame * J + joint]`, mm (empty without motion).
+    pub joint_positions_mm: Vec<Vec3>,
+    /// Local joint rotations (the root's in the motion frame), `[frame * J + joint]`.
+    pub joint_rotations: Vec<Quat>,
 }
 
 impl<R: Read> ShardReader<R> {
@@ -356,7 +389,7 @@ impl<R: Read> ShardReader<R> {
         }
         let mut pad = [0u8; 3];
         reader.read_exact(&mut pad[..(4 - len as usize % 4) % 4]).map_err(cut)?;
-        Ok(ShardReader { reader, header, next_frame: 0 })
+        Ok(ShardReader { reader, header, next_frame: 0, length_checked: file_len.is_some() })
     }
 
     /// The header.
@@ -389,6 +422,70 @@ impl<R: Read> ShardReader<R> {
         self.next_frame += frames;
         Ok(Some(chunk))
     }
+}
+
+impl<R: Read> ShardReader<R> {
+    /// The clean (ground-truth) markers of the whole shard, as a take: what a gap-fill
+    /// refiner trains on.
+    ///
+    /// # Errors
+    /// As [`ShardReader::read_all`].
+    pub fn read_clean(self) -> Result<Take, ShardError> {
+        Ok(self.decode(false)?.clean)
+    }
+
+    /// Every frame record of the shard, decoded: clean and corrupted takes, joint positions
+    /// and rotations. A reader made with [`ShardReader::with_len`] sizes its buffers from the
+    /// (checked) frame count; one over a stream of unknown length grows them with the records
+    /// that arrive, so a lying header cannot make it allocate.
+    ///
+    /// # Errors
+    /// The data ends early ([`ShardError::Truncated`]), reading fails, memory cannot hold the
+    /// announced samples ([`ShardError::Memory`]), or a sample is not finite
+    /// ([`ShardError::Take`]).
+    pub fn read_all(self) -> Result<ShardContents, ShardError> {
+        self.decode(true)
+    }
+
+    /// [`ShardReader::read_all`]; without `all`, the observed take and joints stay empty.
+    fn decode(mut self, all: bool) -> Result<ShardContents, ShardError> {
+        let header = self.header.clone();
+        let (m, j, t) = (header.markers.len(), if all { header.joints.len() } else { 0 }, header.frames);
+        // Only a length-checked frame count may size a buffer (see the type's docs).
+        let cap = |per_frame: usize| if self.length_checked { t.saturating_mul(per_frame) } else { 0 };
+        let mut clean = reserved(cap(m))?;
+        let mut observed = reserved(cap(if all { m } else { 0 }))?;
+        let mut joint_positions_mm = reserved(cap(j))?;
+        let mut joint_rotations = reserved(cap(j))?;
+        let v3 = |p: [f32; 3]| Vec3::new(p[0] as f64, p[1] as f64, p[2] as f64);
+        while let Some(chunk) = self.next_chunk(1024)? {
+            for record in chunk.records() {
+                clean.extend(record.clean_mm().map(|p| Some(v3(p))));
+                if all {
+                    observed.extend(record.observed_mm().map(|p| p.map(v3)));
+                    joint_positions_mm.extend(record.joint_positions_mm().map(v3));
+                    joint_rotations.extend(record.joint_rotations_xyzw().map(|[x, y, z, w]| {
+                        Quat::from_quaternion(nalgebra::Quaternion::new(w as f64, x as f64, y as f64, z as f64))
+                    }));
+                }
+            }
+        }
+        let names: Vec<MarkerName> = header.markers.iter().map(|l| MarkerName::parse(l)).collect();
+        let take = |samples: &[Option<Vec3>]| {
+            Take::from_samples(names.clone(), samples, header.frame_rate_hz).map_err(ShardError::Take)
+        };
+        let clean = take(&clean)?;
+        let observed = if all { take(&observed)? } else { take(&[])? };
+        Ok(ShardContents { header, clean, observed, joint_positions_mm, joint_rotations })
+    }
+}
+
+/// An empty vector with room for `n` items, or [`ShardError::Memory`]: the counts are checked
+/// against the file's size, but a real file can still be larger than memory.
+fn reserved<T>(n: usize) -> Result<Vec<T>, ShardError> {
+    let mut v = Vec::new();
+    v.try_reserve_exact(n).map_err(|source| ShardError::Memory { samples: n, source })?;
+    Ok(v)
 }
 
 /// The checks serde cannot make: counts within bounds, a usable frame rate, a skeleton that
@@ -449,6 +546,34 @@ mod tests {
         // Data start is 4-byte aligned.
         let header_len = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
         assert_eq!((bytes.len() - 16 - header_len.next_multiple_of(4)) % 4, 0);
+    }
+
+    #[test]
+    fn whole_shards_decode_to_takes_and_joints() {
+        use crate::test_util::joint;
+        let (clean, observed) = takes();
+        let sk =
+            Skeleton::new(vec![joint("root", None, [0.0; 3]), joint("knee", Some(0), [0.0, -400.0, 0.0])]).unwrap();
+        let turn = locap_core::Quat::from_axis_angle(&Vec3::y_axis(), 0.5);
+        let rot = (0..10).map(|i| if i % 2 == 1 { turn } else { locap_core::Quat::identity() }).collect();
+        let motion = Motion::new(sk, rot, vec![Vec3::new(1.0, 2.0, 3.0); 5], 100.0).unwrap();
+        let mut bytes = Vec::new();
+        write_shard(&mut bytes, &clean, &observed, Some(&motion), LabFrame::Motion).unwrap();
+        let all = ShardReader::with_len(bytes.as_slice(), bytes.len() as u64).unwrap().read_all().unwrap();
+        assert_eq!(all.clean.markers().iter().map(|n| n.label.as_str()).collect::<Vec<_>>(), ["A", "B"]);
+        assert_eq!((all.clean.frame_count(), all.clean.frame_rate_hz()), (5, 100.0));
+        assert_eq!(all.clean.position_mm(2, 1), clean.position_mm(2, 1));
+        assert_eq!(all.observed.position_mm(2, 1), None);
+        assert_eq!(all.observed.position_mm(3, 1), clean.position_mm(3, 1));
+        assert_eq!((all.joint_positions_mm.len(), all.joint_rotations.len()), (10, 10));
+        assert!((all.joint_rotations[1].angle() - 0.5).abs() < 1e-6);
+        assert!((all.joint_positions_mm[1] - Vec3::new(1.0, -398.0, 3.0)).norm() < 1e-3);
+        // The refiner's half: the same clean take, from a stream of unknown length too.
+        assert_eq!(ShardReader::new(bytes.as_slice()).unwrap().read_clean().unwrap(), all.clean);
+        // A stream whose header lies about its frames ends in an error, not an allocation.
+        let liar = handmade(&header_json(1_000_000_000_000, 2), &[0u8; 14 * 4 * 3]);
+        let e = ShardReader::new(liar.as_slice()).unwrap().read_clean().unwrap_err();
+        assert!(matches!(&e, ShardError::Truncated(at) if at == "frame 3 of 1000000000000"), "{e}");
     }
 
     #[test]

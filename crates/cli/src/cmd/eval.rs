@@ -9,7 +9,7 @@ use anyhow::{Context, Result};
 use clap::Parser;
 use locap_eval::solver::{MethodScores, MotionComparison, compare_motions, evaluate, gap_bin_labels, table};
 use locap_nn::Refiner;
-use locap_nn::solver::{Solver, SolverData};
+use locap_nn::solver::Solver;
 use locap_view::plot::{Chart, Format};
 use serde::Serialize;
 use std::path::{Path, PathBuf};
@@ -113,7 +113,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
         }
         None => None,
     };
-    let data = SolverData::from_path(&args.data)?;
+    let data = crate::training::solver_data(&args.data)?;
     eprintln!("evaluating {} models on {} takes, {} frames", solvers.len(), data.shards.len(), data.frames());
     let refs: Vec<(String, &Solver)> = solvers.iter().map(|(n, s)| (n.clone(), s)).collect();
     let scores = evaluate(&refs, &data.shards, refiner.as_ref())?;

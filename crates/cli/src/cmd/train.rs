@@ -7,8 +7,8 @@
 
 use anyhow::{Context, Result};
 use clap::{Parser, Subcommand};
-use locap_nn::TrainConfig;
-use locap_nn::train::{Checkpoints, TrainingData, train};
+use locap_nn::harness::{Checkpoints, Schedule};
+use locap_nn::refiner::{NetConfig, TrainConfig, train};
 use locap_synth::gap_model::GapModel;
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -58,7 +58,7 @@ pub struct FillArgs {
     #[arg(value_parser = crate::values::count(1, crate::values::max(locap_nn::limits::MAX_BATCH_WINDOWS)), long, default_value_t = TrainConfig::default().batch, value_name = "N", help_heading = "Training")]
     batch: usize,
     /// Peak learning rate (Adam; linear warm-up, cosine decay to a tenth).
-    #[arg(value_parser = crate::values::positive, long, default_value_t = TrainConfig::default().learning_rate, value_name = "LR", help_heading = "Training")]
+    #[arg(value_parser = crate::values::positive, long, default_value_t = TrainConfig::default().schedule.learning_rate, value_name = "LR", help_heading = "Training")]
     lr: f64,
     /// Seed of every random draw (initial weights, windows, corruption).
     #[arg(long, default_value_t = 1, value_name = "S", help_heading = "Training")]
@@ -93,10 +93,10 @@ pub struct FillArgs {
     #[arg(value_parser = crate::values::count(2, crate::values::max(locap_nn::limits::MAX_WINDOW)), long, default_value_t = TrainConfig::default().window, value_name = "FRAMES", help_heading = "Network")]
     window: usize,
     /// Graph-convolution features per marker.
-    #[arg(value_parser = crate::values::count(1, crate::values::max(locap_nn::limits::MAX_CHANNELS)), long, default_value_t = TrainConfig::default().channels, value_name = "N", help_heading = "Network")]
+    #[arg(value_parser = crate::values::count(1, crate::values::max(locap_nn::limits::MAX_CHANNELS)), long, default_value_t = TrainConfig::default().net.channels, value_name = "N", help_heading = "Network")]
     channels: usize,
     /// LSTM hidden size per direction.
-    #[arg(value_parser = crate::values::count(1, crate::values::max(locap_nn::limits::MAX_HIDDEN)), long, default_value_t = TrainConfig::default().hidden, value_name = "N", help_heading = "Network")]
+    #[arg(value_parser = crate::values::count(1, crate::values::max(locap_nn::limits::MAX_HIDDEN)), long, default_value_t = TrainConfig::default().net.hidden, value_name = "N", help_heading = "Network")]
     hidden: usize,
     /// The model file to write.
     #[arg(long, default_value = "refiner.locapnn", value_name = "MODEL", help_heading = "Output")]
@@ -121,7 +121,7 @@ fn fill(args: FillArgs) -> Result<ExitCode> {
     // Only to protect the training files and refuse an output among them before any work.
     crate::inputs::expand(&args.data, &["shard", "c3d"])?;
     crate::inputs::check_outputs(&[args.out.clone(), crate::inputs::with_suffix(&args.out, ".loss.svg")])?;
-    let data = TrainingData::from_paths(&args.data)?;
+    let data = crate::training::fill_data(&args.data)?;
     let frame = locap_nn::features::frame_for(&data.markers).with_context(|| {
         format!(
             "no local frame is defined for these markers (the CMU waist LFWT/RFWT/LBWT/RBWT, the paper's \
@@ -134,14 +134,13 @@ fn fill(args: FillArgs) -> Result<ExitCode> {
     let defaults = TrainConfig::default();
     let mut config = TrainConfig {
         batch: args.batch,
-        learning_rate: args.lr,
+        schedule: Schedule { learning_rate: args.lr, ..defaults.schedule },
         seed: args.seed,
         validate_every: args.validate_every,
         checkpoint_every: args.checkpoint_every,
         validation_fraction: args.validation_fraction,
         window: args.window,
-        channels: args.channels,
-        hidden: args.hidden,
+        net: NetConfig { channels: args.channels, hidden: args.hidden, ..defaults.net },
         frame,
         per_take_centre: !args.pooled_centre,
         taper_frames: args.taper,
@@ -150,10 +149,10 @@ fn fill(args: FillArgs) -> Result<ExitCode> {
         augment: locap_synth::augment::AugmentConfig { missing_fraction: Some(args.p_occ), ..defaults.augment.clone() },
         ..defaults
     };
-    config.steps = match (args.epochs, args.steps) {
+    config.schedule.steps = match (args.epochs, args.steps) {
         (Some(e), _) => e * data.steps_per_epoch(&config),
         (None, Some(s)) => s,
-        (None, None) => config.steps,
+        (None, None) => config.schedule.steps,
     };
     eprintln!(
         "training on {} takes, {} frames, {} markers ({} frame): {} steps of {} x {} frames",
@@ -161,32 +160,32 @@ fn fill(args: FillArgs) -> Result<ExitCode> {
         data.frames(),
         data.markers.len(),
         config.frame.name,
-        config.steps,
+        config.schedule.steps,
         config.batch,
         config.window
     );
-    let bar = indicatif::ProgressBar::new(config.steps as u64);
+    let bar = indicatif::ProgressBar::new(config.schedule.steps as u64);
     bar.set_style(
         indicatif::ProgressStyle::with_template("{msg} [{bar:30}] {pos}/{len} ({eta})")
             .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar())
             .progress_chars("=> "),
     );
     let mut validation = String::new();
-    let checkpoints = Checkpoints { dir: crate::inputs::with_suffix(&args.out, ".checkpoints"), resume: args.resume };
-    let (refiner, report) = train(&data, &config, &gap_model, Some(&checkpoints), &mut |p| {
-        if let Some(v) = p.validation_mm {
+    let store = crate::training::FolderCheckpointer::new(crate::inputs::with_suffix(&args.out, ".checkpoints"))?;
+    let checkpoints = Checkpoints { store: &store, resume: args.resume };
+    let (refiner, report) = train(&data, &config, &gap_model, Some(checkpoints), &mut |p| {
+        if let Some(v) = p.validation {
             validation = format!(", validation {v:.2} mm");
         }
         bar.set_position(p.step as u64);
-        bar.set_message(format!("loss {:.2} mm{validation}", p.loss_mm));
+        bar.set_message(format!("loss {:.2} mm{validation}", p.loss));
     })?;
     bar.finish_and_clear();
     let bytes = refiner.to_bytes()?;
     crate::inputs::create_parent(&args.out)?;
     crate::inputs::write_bytes(&args.out, &bytes)?;
     let curve_path = crate::inputs::with_suffix(&args.out, ".loss.svg");
-    let curve = report.loss_curve("locap train fill")?.render(locap_view::plot::Format::Svg, (800, 480))?;
-    crate::inputs::write_bytes(&curve_path, &curve)?;
+    crate::training::write_loss_curve(report.loss_curve(), "locap train fill", &curve_path)?;
     let last = |v: &[(usize, f64)]| v.last().map(|x| format!("{:.2} mm", x.1)).unwrap_or_else(|| "-".into());
     crate::emit(&format!(
         "{}: {} weights ({:.1} MB), {} steps ({:.3} s/step); training loss {}, validation {} (EDM alone {}); loss curve {}\n",

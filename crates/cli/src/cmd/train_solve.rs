@@ -10,8 +10,8 @@
 use anyhow::Result;
 use clap::{Parser, ValueEnum};
 use locap_clean::local_frame::FrameDefinition;
-use locap_nn::solver::{SolverData, SolverTrainConfig, Variant, train_solver};
-use locap_nn::train::Checkpoints;
+use locap_nn::harness::{Checkpoints, Schedule};
+use locap_nn::solver::{NetConfig, SolverTrainConfig, Variant, train_solver};
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -66,22 +66,22 @@ pub struct SolveArgs {
     #[arg(long, value_enum, default_value_t = Frame::Waist, help_heading = "Network")]
     frame: Frame,
     /// Mean marker-joint distance that links a marker to a joint, mm (about 40 for hands).
-    #[arg(value_parser = crate::values::positive_length_mm, long, default_value_t = SolverTrainConfig::default().link_threshold_mm, value_name = "MM", help_heading = "Network")]
+    #[arg(value_parser = crate::values::positive_length_mm, long, default_value_t = SolverTrainConfig::default().net.link_threshold_mm, value_name = "MM", help_heading = "Network")]
     link_mm: f64,
     /// Features per marker and joint node.
-    #[arg(value_parser = crate::values::count(1, crate::values::max(locap_nn::limits::MAX_CHANNELS)), long, default_value_t = SolverTrainConfig::default().channels, value_name = "N", help_heading = "Network")]
+    #[arg(value_parser = crate::values::count(1, crate::values::max(locap_nn::limits::MAX_CHANNELS)), long, default_value_t = SolverTrainConfig::default().net.channels, value_name = "N", help_heading = "Network")]
     channels: usize,
     /// Features of the global node (the MLP is 4 times as wide).
-    #[arg(value_parser = crate::values::count(1, crate::values::max(locap_nn::limits::MAX_GLOBAL)), long, default_value_t = SolverTrainConfig::default().global, value_name = "N", help_heading = "Network")]
+    #[arg(value_parser = crate::values::count(1, crate::values::max(locap_nn::limits::MAX_GLOBAL)), long, default_value_t = SolverTrainConfig::default().net.global, value_name = "N", help_heading = "Network")]
     global: usize,
     /// Training steps.
-    #[arg(value_parser = crate::values::count(1, 1 << 30), long, default_value_t = SolverTrainConfig::default().steps, value_name = "N", help_heading = "Training")]
+    #[arg(value_parser = crate::values::count(1, 1 << 30), long, default_value_t = SolverTrainConfig::default().schedule.steps, value_name = "N", help_heading = "Training")]
     steps: usize,
     /// Frames per step.
     #[arg(value_parser = crate::values::count(1, crate::values::max(locap_nn::limits::MAX_BATCH_FRAMES)), long, default_value_t = SolverTrainConfig::default().batch, value_name = "N", help_heading = "Training")]
     batch: usize,
     /// Peak learning rate (Adam; linear warm-up, cosine decay to a tenth).
-    #[arg(value_parser = crate::values::positive, long, default_value_t = SolverTrainConfig::default().learning_rate, value_name = "LR", help_heading = "Training")]
+    #[arg(value_parser = crate::values::positive, long, default_value_t = SolverTrainConfig::default().schedule.learning_rate, value_name = "LR", help_heading = "Training")]
     lr: f64,
     /// Seed of every random draw.
     #[arg(long, default_value_t = 1, value_name = "S", help_heading = "Training")]
@@ -111,25 +111,28 @@ pub fn run(args: SolveArgs) -> Result<ExitCode> {
     // Only to protect the training files and refuse an output among them before any work.
     crate::inputs::expand(std::slice::from_ref(&args.data), &["shard"])?;
     crate::inputs::check_outputs(&[args.out.clone(), crate::inputs::with_suffix(&args.out, ".loss.svg")])?;
-    let data = SolverData::from_path(&args.data)?;
+    let data = crate::training::solver_data(&args.data)?;
+    let defaults = SolverTrainConfig::default();
     let config = SolverTrainConfig {
         variant: args.arch.into(),
         batch: args.batch,
-        steps: args.steps,
-        learning_rate: args.lr,
+        schedule: Schedule { steps: args.steps, learning_rate: args.lr, ..defaults.schedule },
         seed: args.seed,
         validate_every: args.validate_every,
         checkpoint_every: args.checkpoint_every,
         validation_fraction: args.validation_fraction,
-        channels: args.channels,
-        global: args.global,
-        link_threshold_mm: args.link_mm,
+        net: NetConfig {
+            channels: args.channels,
+            global: args.global,
+            link_threshold_mm: args.link_mm,
+            ..defaults.net
+        },
         frame: match args.frame {
             Frame::Waist => FrameDefinition::cmu_waist(),
             Frame::LeftWrist => FrameDefinition::paper_wrist('L'),
             Frame::RightWrist => FrameDefinition::paper_wrist('R'),
         },
-        ..SolverTrainConfig::default()
+        ..defaults
     };
     eprintln!(
         "training the {} solver on {} takes, {} frames, {} markers, {} joints: {} steps of {} frames",
@@ -138,15 +141,16 @@ pub fn run(args: SolveArgs) -> Result<ExitCode> {
         data.frames(),
         data.markers.len(),
         data.skeleton.len(),
-        config.steps,
+        config.schedule.steps,
         config.batch
     );
-    let bar = crate::progress(config.steps.max(2), "training");
+    let bar = crate::progress(config.schedule.steps.max(2), "training");
     let mut validation = String::new();
-    let checkpoints = Checkpoints { dir: crate::inputs::with_suffix(&args.out, ".checkpoints"), resume: args.resume };
-    let (solver, report) = train_solver(&data, &config, Some(&checkpoints), &mut |p| {
-        if let Some((jpe, joe)) = p.validation {
-            validation = format!(", validation JPE {jpe:.1} mm, JOE {joe:.2} deg");
+    let store = crate::training::FolderCheckpointer::new(crate::inputs::with_suffix(&args.out, ".checkpoints"))?;
+    let checkpoints = Checkpoints { store: &store, resume: args.resume };
+    let (solver, report) = train_solver(&data, &config, Some(checkpoints), &mut |p| {
+        if let Some(v) = p.validation {
+            validation = format!(", validation JPE {:.1} mm, JOE {:.2} deg", v.jpe_mm, v.joe_deg);
         }
         bar.set_position(p.step as u64);
         bar.set_message(format!("loss {:.3}{validation}", p.loss));
@@ -156,8 +160,7 @@ pub fn run(args: SolveArgs) -> Result<ExitCode> {
     crate::inputs::create_parent(&args.out)?;
     crate::inputs::write_bytes(&args.out, &bytes)?;
     let curve_path = crate::inputs::with_suffix(&args.out, ".loss.svg");
-    let curve = report.loss_curve("locap train solve")?.render(locap_view::plot::Format::Svg, (800, 480))?;
-    crate::inputs::write_bytes(&curve_path, &curve)?;
+    crate::training::write_loss_curve(report.loss_curve(), "locap train solve", &curve_path)?;
     let last = |v: &[(usize, f64)], unit: &str| v.last().map(|x| format!("{:.2} {unit}", x.1)).unwrap_or("-".into());
     crate::emit(&format!(
         "{}: {} solver, {} weights ({:.1} MB), {} steps ({:.3} s/step, {:.0} s); validation JPE {}, JOE {} (per-frame offsets); loss curve {}\n",

@@ -10,13 +10,11 @@ use crate::features::{LocalTake, marker_order};
 use crate::refiner::Refiner;
 use locap_clean::CleanConfig;
 use locap_clean::local_frame::{FrameDefinition, LocalFrame, local_frames};
-use locap_core::{MarkerName, Quat, Skeleton, Take, Vec3};
+use locap_core::{Quat, Skeleton, Take, Vec3};
 use locap_synth::shard::ShardReader;
 use locap_synth::synthesize::LabFrame;
 use nalgebra::{Matrix3, Rotation3};
-use std::fs::File;
-use std::io::{BufReader, Read};
-use std::path::{Path, PathBuf};
+use std::io::Read;
 
 /// One shard with everything a solver needs.
 #[derive(Debug, Clone)]
@@ -37,93 +35,29 @@ pub struct SolverShard {
     pub lab: LabFrame,
 }
 
-/// Opens the shard file at `path`, its header checked against the file's length (see
-/// [`ShardReader::with_len`]): a truncated file or one whose header lies about its frame
-/// count is an error naming the file before anything is allocated from the header.
+/// The solver data of the shard `reader` reads (`name`, the shard's path, goes into errors),
+/// decoded by synth's one shard decoder ([`ShardReader::read_all`]). Give it a reader made
+/// with [`ShardReader::with_len`]: its frame count is checked against the file's length, and
+/// the buffers are sized from it.
 ///
 /// # Errors
-/// [`NnError::Io`] if the file cannot be opened, [`NnError::ShardFile`] if it is not a
-/// readable shard.
-pub fn open_shard(path: &Path) -> Result<ShardReader<BufReader<File>>, NnError> {
-    let name = path.display().to_string();
-    let io = |source| NnError::Io { path: name.clone(), source };
-    let file = File::open(path).map_err(io)?;
-    let len = file.metadata().map_err(io)?.len();
-    ShardReader::with_len(BufReader::new(file), len).map_err(|source| NnError::ShardFile { path: name, source })
-}
-
-/// An empty vector with room for `n` items, or an error naming the shard when memory cannot
-/// hold them (the counts are checked against the file's size, but a real file can still be
-/// larger than memory).
-pub(crate) fn reserve<T>(n: usize, name: &str) -> Result<Vec<T>, NnError> {
-    let mut v = Vec::new();
-    v.try_reserve_exact(n).map_err(|e| NnError::Data(format!("{name}: cannot hold the shard's {n} samples: {e}")))?;
-    Ok(v)
-}
-
-/// Reads a shard that carries motion and its skeleton (see [`open_shard`]).
-///
-/// # Errors
-/// Not a shard, cut short, or written without motion or skeleton.
-pub fn read_solver_shard(path: &Path) -> Result<SolverShard, NnError> {
-    solver_shard(open_shard(path)?, &path.display().to_string())
-}
-
-/// The solver data of the shard `reader` reads (`name` goes into errors). Give it a reader
-/// made with [`ShardReader::with_len`] (as [`open_shard`] does): its frame count is checked
-/// against the data, and the buffers are sized from it.
-///
-/// # Errors
-/// Cut short, or written without motion or skeleton.
-pub fn solver_shard<R: Read>(mut reader: ShardReader<R>, name: &str) -> Result<SolverShard, NnError> {
-    let header = reader.header().clone();
-    let skeleton = header.skeleton.clone().ok_or_else(|| {
-        NnError::Data(format!("{name}: the shard has no skeleton (write it again with this locap's `locap synth`)"))
-    })?;
-    let (m, j, t) = (header.markers.len(), header.joints.len(), header.frames);
-    if j == 0 {
-        return Err(NnError::Data(format!("{name}: the shard has no joint motion")));
+/// Cut short or unreadable ([`NnError::ShardFile`]), or written without skeleton or motion.
+pub fn solver_shard<R: Read>(reader: ShardReader<R>, name: &str) -> Result<SolverShard, NnError> {
+    let header = reader.header();
+    let skeleton = header.skeleton.clone().ok_or_else(|| NnError::NoSkeleton { name: name.to_string() })?;
+    if header.joints.is_empty() {
+        return Err(NnError::NoMotion { name: name.to_string() });
     }
-    let (mut clean, mut observed) = (reserve(t.saturating_mul(m), name)?, reserve(t.saturating_mul(m), name)?);
-    let mut joint_positions_mm = reserve(t.saturating_mul(j), name)?;
-    let mut rotations = reserve(t.saturating_mul(j), name)?;
-    let v3 = |p: [f32; 3]| Vec3::new(p[0] as f64, p[1] as f64, p[2] as f64);
-    let at = |source| NnError::ShardFile { path: name.to_string(), source };
-    while let Some(chunk) = reader.next_chunk(1024).map_err(at)? {
-        for rec in chunk.records() {
-            clean.extend(rec.clean_mm().map(|p| Some(v3(p))));
-            observed.extend(rec.observed_mm().map(|p| p.map(v3)));
-            joint_positions_mm.extend(rec.joint_positions_mm().map(v3));
-            rotations.extend(rec.joint_rotations_xyzw().map(|[x, y, z, w]| {
-                Quat::from_quaternion(nalgebra::Quaternion::new(w as f64, x as f64, y as f64, z as f64))
-            }));
-        }
-    }
-    let names: Vec<MarkerName> = header.markers.iter().map(|l| MarkerName::parse(l)).collect();
-    let take = |s: &[Option<Vec3>]| {
-        Take::from_samples(names.clone(), s, header.frame_rate_hz).map_err(|e| NnError::Data(format!("{name}: {e}")))
-    };
+    let contents = reader.read_all().map_err(|source| NnError::ShardFile { path: name.to_string(), source })?;
     Ok(SolverShard {
-        clean: take(&clean)?,
-        observed: take(&observed)?,
+        clean: contents.clean,
+        observed: contents.observed,
         name: name.to_string(),
         skeleton,
-        joint_positions_mm,
-        rotations,
-        lab: header.lab,
+        joint_positions_mm: contents.joint_positions_mm,
+        rotations: contents.joint_rotations,
+        lab: contents.header.lab,
     })
-}
-
-/// Every `*.shard` under `path` (searched recursively, sorted), or `path` itself if it is a file.
-///
-/// # Errors
-/// A folder cannot be listed, or there are no shards.
-pub fn shard_paths(path: &Path) -> Result<Vec<PathBuf>, NnError> {
-    let paths = if path.is_dir() { crate::train::files_under(path, "shard")? } else { vec![path.to_path_buf()] };
-    if paths.is_empty() {
-        return Err(NnError::Data(format!("{}: no .shard files (write them with `locap synth`)", path.display())));
-    }
-    Ok(paths)
 }
 
 /// The rotation taking motion-frame coordinates to lab coordinates.

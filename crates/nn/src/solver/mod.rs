@@ -6,8 +6,8 @@
 //!   MLP), Gram-Schmidt and forward kinematics in burn.
 //! * [`data`]: training shards with their skeleton, the cleaning before solving, per-frame
 //!   truth in the waist frame.
-//! * [`model`]: the versioned model file (`LOCAPSV\0`) and inference on a take.
-//! * [`train`]: Eq. 5 training with the refiner's machinery.
+//! * [`train`]: Eq. 5 training with the shared harness ([`crate::harness`]).
+//! * [`file`]: the model file (`LOCAPSV\0`) and inference on a take.
 //!
 //! The paper's metrics (JOE, JPE, OMPE) on held-out shards are in `locap_eval::solver`.
 //!
@@ -17,10 +17,11 @@
 //! body and finger motion, which the data (CMU bodies, ART hands) does not have.
 
 pub mod data;
-pub mod model;
+pub mod file;
 pub mod net;
 pub mod train;
 
-pub use model::{Solver, SolverMeta};
-pub use net::Variant;
-pub use train::{SolverData, SolverReport, SolverTrainConfig, train_solver};
+pub use data::{SolverShard, solver_shard};
+pub use file::{Solver, SolverMeta};
+pub use net::{NetConfig, Variant};
+pub use train::{SolverData, SolverProgress, SolverReport, SolverTrainConfig, SolverValidation, train_solver};

@@ -38,7 +38,7 @@
 //! with the sign that gives determinant +1, so the last three numbers carry no information).
 //! Offsets and the translation are predicted normalised (mean and spread of the training data).
 
-use crate::model::GraphConv;
+use crate::refiner::net::GraphConv;
 use burn::module::Module;
 use burn::nn::{Linear, LinearConfig};
 use burn::prelude::*;
@@ -127,6 +127,25 @@ impl SolverGraph {
         }
         Ok(())
     }
+}
+
+/// The network's settings in a training configuration (with the variant, the data's markers
+/// and joints, and the graph they make its [`SolverArchitecture`]).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct NetConfig {
+    /// Features per marker and joint node.
+    pub channels: usize,
+    /// Global-node features (the MLP's width).
+    pub global: usize,
+    /// Marker-graph neighbours `K` (the paper: 3).
+    pub neighbours: usize,
+    /// Pose-averaged marker-joint distance that links a marker to a joint, mm.
+    #[serde(default = "default_link")]
+    pub link_threshold_mm: f64,
+}
+
+fn default_link() -> f64 {
+    MARKER_JOINT_THRESHOLD_MM
 }
 
 /// Size of a solver network (stored in the model file).

@@ -1,6 +1,6 @@
 //! Training a solver (LocalMoCap section 3.2, Eq. 5) on the shards `locap synth` writes, with
-//! the refiner's machinery (Adam with gradient clipping, warm-up and cosine learning rate,
-//! validation on held-out frames, checkpoints and resume, loss curve).
+//! the harness the refiner trains with too ([`crate::harness`]: Adam with gradient clipping,
+//! warm-up and cosine learning rate, validation on held-out frames, checkpoints and resume).
 //!
 //! * Data: every shard's corrupted markers are cleaned once as `locap solve` cleans a real take
 //!   (outliers, EDM fill; [`super::data::clean_for_solving`]) and put in the waist frame; each
@@ -13,27 +13,22 @@
 //!   `λ_FK = 0.02 / mm` (a rotation-entry error of 0.1, about 6°, costs as much as 5 mm of joint
 //!   position).
 
-use super::data::{LocalInput, SolverShard, clean_for_solving, frame_truth, marker_joint_distances, read_solver_shard};
-use super::model::{OutputStats, OutputTensors, Solver, SolverMeta};
+use super::data::{LocalInput, SolverShard, clean_for_solving, frame_truth, marker_joint_distances};
+use super::file::{OutputStats, OutputTensors, Solver, SolverMeta};
 use super::net::{
-    Gathers, MARKER_JOINT_THRESHOLD_MM, MAX_MARKERS_PER_JOINT, MIN_MARKERS_PER_JOINT, SolverArchitecture, SolverGraph,
-    SolverNet, Variant, forward_kinematics,
+    Gathers, MARKER_JOINT_THRESHOLD_MM, MAX_MARKERS_PER_JOINT, MIN_MARKERS_PER_JOINT, NetConfig, SolverArchitecture,
+    SolverGraph, SolverNet, Variant, forward_kinematics,
 };
 use crate::NnError;
-use crate::TrainConfig;
 use crate::features::{Normalisation, input_values, neighbour_graph};
-use crate::train::{Checkpoints, read_file, rng_for, write_file};
-use burn::grad_clipping::GradientClippingConfig;
-use burn::module::Module;
-use burn::optim::{AdamConfig, GradientsParams};
+use crate::harness::{
+    Checkpoints, FitConfig, History, LossCurve, OptimizerConfig, Progress, Schedule, StepLoss, Task, fit, rng_for,
+};
 use burn::prelude::*;
-use burn::tensor::Bytes;
 use locap_clean::local_frame::FrameDefinition;
 use rand::RngExt;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
-use std::path::Path;
-use std::time::Instant;
 
 /// Settings of a solver training run.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -42,12 +37,9 @@ pub struct SolverTrainConfig {
     pub variant: Variant,
     /// Frames per step.
     pub batch: usize,
-    /// Optimisation steps.
-    pub steps: usize,
-    /// Peak learning rate.
-    pub learning_rate: f64,
-    /// Steps of linear warm-up.
-    pub warmup_steps: usize,
+    /// Steps and learning rate.
+    #[serde(flatten)]
+    pub schedule: Schedule,
     /// Fraction of every take held out for validation.
     pub validation_fraction: f64,
     /// Validation frames (evenly spread over the held-out frames).
@@ -58,15 +50,9 @@ pub struct SolverTrainConfig {
     pub checkpoint_every: usize,
     /// Seed.
     pub seed: u64,
-    /// Features per marker and joint node.
-    pub channels: usize,
-    /// Global-node features (the MLP's width).
-    pub global: usize,
-    /// Marker-graph neighbours `K` (the paper: 3).
-    pub neighbours: usize,
-    /// Pose-averaged marker-joint distance that links a marker to a joint, mm.
-    #[serde(default = "default_link")]
-    pub link_threshold_mm: f64,
+    /// Network size and graph.
+    #[serde(flatten)]
+    pub net: NetConfig,
     /// `λ_M`: rotation term weight.
     pub rotation_weight: f64,
     /// `λ_S`: offset term weight, per mm.
@@ -75,6 +61,9 @@ pub struct SolverTrainConfig {
     pub fk_weight_per_mm: f64,
     /// Local frame.
     pub frame: FrameDefinition,
+    /// The optimizer (not stored: every model was trained with the default).
+    #[serde(skip)]
+    pub optimizer: OptimizerConfig,
 }
 
 impl Default for SolverTrainConfig {
@@ -84,28 +73,20 @@ impl Default for SolverTrainConfig {
         SolverTrainConfig {
             variant: Variant::Graph,
             batch: 256,
-            steps: 3000,
-            learning_rate: 1e-3,
-            warmup_steps: 100,
+            schedule: Schedule { steps: 3000, learning_rate: 1e-3, warmup_steps: 100 },
             validation_fraction: 0.1,
             validation_frames: 2048,
             validate_every: 100,
             checkpoint_every: 500,
             seed: 1,
-            channels: 32,
-            global: 128,
-            neighbours: 3,
-            link_threshold_mm: MARKER_JOINT_THRESHOLD_MM,
+            net: NetConfig { channels: 32, global: 128, neighbours: 3, link_threshold_mm: MARKER_JOINT_THRESHOLD_MM },
             rotation_weight: 1.0,
             offset_weight_per_mm: 0.01,
             fk_weight_per_mm: 0.02,
             frame: FrameDefinition::cmu_waist(),
+            optimizer: OptimizerConfig::default(),
         }
     }
-}
-
-fn default_link() -> f64 {
-    MARKER_JOINT_THRESHOLD_MM
 }
 
 impl SolverTrainConfig {
@@ -114,37 +95,36 @@ impl SolverTrainConfig {
     /// can call it first.
     ///
     /// # Errors
-    /// [`NnError::Limit`] for a size above its ceiling, [`NnError::Data`] for others.
+    /// [`NnError::Limit`] for a size above its ceiling, [`NnError::Setting`] for others.
     pub fn validate(&self) -> Result<(), NnError> {
         use crate::limits::{self, check};
+        let net = &self.net;
         check("batch", self.batch, limits::MAX_BATCH_FRAMES)?;
-        check("channels", self.channels, limits::MAX_CHANNELS)?;
-        check("global", self.global, limits::MAX_GLOBAL)?;
-        check("neighbours", self.neighbours, limits::MAX_NEIGHBOURS)?;
+        check("channels", net.channels, limits::MAX_CHANNELS)?;
+        check("global", net.global, limits::MAX_GLOBAL)?;
+        check("neighbours", net.neighbours, limits::MAX_NEIGHBOURS)?;
         check("validation frames", self.validation_frames, limits::MAX_VALIDATION_FRAMES)?;
-        if self.batch == 0 || self.channels == 0 || self.global == 0 || self.neighbours == 0 {
-            return Err(NnError::Data("batch, channels, global and neighbours must be 1 or more".into()));
-        }
-        if !(self.learning_rate.is_finite() && self.learning_rate > 0.0) {
-            return Err(NnError::Data(format!("learning rate {} must be positive", self.learning_rate)));
-        }
-        if !(0.0..0.9).contains(&self.validation_fraction) {
-            return Err(NnError::Data(format!("validation fraction {} must be in 0..0.9", self.validation_fraction)));
-        }
-        if !(self.link_threshold_mm.is_finite() && self.link_threshold_mm > 0.0) {
-            return Err(NnError::Data(format!("link threshold {} mm must be positive", self.link_threshold_mm)));
+        limits::at_least(1, &[("batch", self.batch), ("channels", net.channels), ("global", net.global)])?;
+        limits::at_least(1, &[("neighbours", net.neighbours)])?;
+        self.schedule.check()?;
+        limits::validation_fraction(self.validation_fraction)?;
+        let link = net.link_threshold_mm;
+        if !(link.is_finite() && link > 0.0) {
+            return Err(NnError::Setting {
+                what: "link threshold (mm)",
+                value: link.to_string(),
+                expected: "positive",
+            });
         }
         Ok(())
     }
 
-    fn learning_rate_at(&self, step: usize) -> f64 {
-        let schedule = TrainConfig {
-            learning_rate: self.learning_rate,
-            warmup_steps: self.warmup_steps,
-            steps: self.steps,
-            ..TrainConfig::default()
-        };
-        schedule.learning_rate_at(step)
+    /// What the harness needs of these settings.
+    pub fn fit(&self) -> FitConfig {
+        FitConfig {
+            optimizer: self.optimizer,
+            ..FitConfig::new(self.schedule, self.validate_every, self.checkpoint_every, self.seed)
+        }
     }
 }
 
@@ -176,30 +156,21 @@ pub struct SolverData {
 }
 
 impl SolverData {
-    /// Every shard under `path`.
-    ///
-    /// # Errors
-    /// No shards, shards without skeletons, or shards with other markers or joints.
-    pub fn from_path(path: &Path) -> Result<SolverData, NnError> {
-        let paths = super::data::shard_paths(path)?;
-        let shards = paths.par_iter().map(|p| read_solver_shard(p)).collect::<Result<Vec<_>, _>>()?;
-        SolverData::new(shards)
-    }
-
     /// Checks that `shards` share markers, joints and parents.
     ///
     /// # Errors
     /// No shards, or shards that differ.
     pub fn new(shards: Vec<SolverShard>) -> Result<SolverData, NnError> {
-        let first = shards.first().ok_or_else(|| NnError::Data("no training shards".into()))?;
+        let first = shards.first().ok_or(NnError::NoData { what: "training shards" })?;
         let markers: Vec<String> = first.clean.markers().iter().map(|n| n.label.clone()).collect();
         let skeleton = first.skeleton.clone();
         let shape =
             |s: &locap_core::Skeleton| s.joints().iter().map(|j| (j.name.clone(), j.parent)).collect::<Vec<_>>();
         for s in &shards {
-            crate::features::marker_order(&s.clean, &markers).map_err(|e| NnError::Data(format!("{}: {e}", s.name)))?;
+            crate::features::marker_order(&s.clean, &markers)
+                .map_err(|e| NnError::InTake { name: s.name.clone(), source: Box::new(e) })?;
             if shape(&s.skeleton) != shape(&skeleton) {
-                return Err(NnError::Data(format!("{}: another skeleton than {}", s.name, first.name)));
+                return Err(NnError::OtherSkeleton { name: s.name.clone(), first: first.name.clone() });
             }
         }
         Ok(SolverData { markers, skeleton, shards })
@@ -238,31 +209,24 @@ pub struct SolverReport {
 
 impl SolverReport {
     /// The loss curve (training and validation Eq. 5 loss).
-    ///
-    /// # Errors
-    /// No points yet.
-    pub fn loss_curve(&self, title: &str) -> Result<locap_view::plot::Chart, locap_view::ViewError> {
-        let pts = |v: &[(usize, f64)]| v.iter().map(|(s, l)| (*s as f64, *l)).collect::<Vec<_>>();
-        let mut series = vec![("training".to_string(), pts(&self.training_loss))];
-        if !self.validation_loss.is_empty() {
-            series.push(("validation".to_string(), pts(&self.validation_loss)));
-        }
-        locap_view::plot::Chart::loss_curve(series, "Eq. 5 loss", title)
+    pub fn loss_curve(&self) -> LossCurve {
+        LossCurve::of("Eq. 5 loss", &[("training", &self.training_loss), ("validation", &self.validation_loss)])
     }
 }
 
-/// Progress after every step.
-#[derive(Debug, Clone, PartialEq)]
-pub struct SolverProgress {
-    /// Steps done.
-    pub step: usize,
-    /// Steps in the run.
-    pub steps: usize,
-    /// Eq. 5 loss of this step.
+/// One validation of a solver.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SolverValidation {
+    /// Eq. 5 loss.
     pub loss: f64,
-    /// Validation JPE (mm) and JOE (degrees) if validated at this step.
-    pub validation: Option<(f64, f64)>,
+    /// Joint position error, mm (per-frame offsets).
+    pub jpe_mm: f64,
+    /// Joint rotation error, degrees.
+    pub joe_deg: f64,
 }
+
+/// Progress of a solver run (the loss is Eq. 5's).
+pub type SolverProgress = Progress<SolverValidation>;
 
 /// A batch as tensors.
 struct Batch {
@@ -304,7 +268,7 @@ struct LossParts<'a> {
     fixed: Tensor<4>,
     rotating_count: f32,
     non_root: Tensor<3>,
-    parents: &'a [Option<usize>],
+    parents: Vec<Option<usize>>,
     config: &'a SolverTrainConfig,
 }
 
@@ -317,7 +281,7 @@ impl LossParts<'_> {
         // Joints that never rotate are the identity in FK, as at inference: the network must not
         // use their rotation to move their children.
         let rot_fk = rot.clone() * self.rotating.clone() + self.fixed.clone();
-        let positions = forward_kinematics(rot_fk, off.clone(), tr, self.parents);
+        let positions = forward_kinematics(rot_fk, off.clone(), tr, &self.parents);
         let rot_term = ((rot.clone() - batch.rotations.clone()).abs() * self.rotating.clone()).sum()
             / (n as f32 * self.rotating_count * 9.0).max(1.0);
         let off_term = ((off - batch.offsets.clone()).abs() * self.non_root.clone()).sum()
@@ -360,8 +324,8 @@ pub fn rotation_angle_deg(a: &[f32], b: &[f32]) -> f64 {
 /// the per-take data.
 fn prepare(data: &SolverData, config: &SolverTrainConfig) -> Result<(SolverMeta, Vec<TakeData>), NnError> {
     let (m, j) = (data.markers.len(), data.skeleton.len());
-    if config.neighbours >= m {
-        return Err(NnError::Data(format!("{} neighbours need more than {m} markers", config.neighbours)));
+    if config.net.neighbours >= m {
+        return Err(NnError::TooFewMarkers { neighbours: config.net.neighbours, markers: m });
     }
     let prepared = data
         .shards
@@ -369,7 +333,7 @@ fn prepare(data: &SolverData, config: &SolverTrainConfig) -> Result<(SolverMeta,
         .map(|s| -> Result<_, NnError> {
             let cleaned = clean_for_solving(&s.observed, None)?;
             let input = LocalInput::new(&cleaned, &data.markers, &config.frame)
-                .map_err(|e| NnError::Data(format!("{}: {e}", s.name)))?;
+                .map_err(|e| NnError::InTake { name: s.name.clone(), source: Box::new(e) })?;
             Ok(input)
         })
         .collect::<Result<Vec<LocalInput>, NnError>>()?;
@@ -443,8 +407,8 @@ fn prepare(data: &SolverData, config: &SolverTrainConfig) -> Result<(SolverMeta,
     let longest = data.shards.iter().max_by_key(|s| s.clean.frame_count()).map(|s| &s.clean);
     let identity: Vec<usize> = (0..m).collect();
     let marker_neighbours = match longest {
-        Some(take) => neighbour_graph(take, &identity, config.neighbours),
-        None => return Err(NnError::Data("no training shards".into())),
+        Some(take) => neighbour_graph(take, &identity, config.net.neighbours),
+        None => return Err(NnError::NoData { what: "training shards" }),
     };
     let distances = marker_joint_distances(&data.shards, &data.markers, 10);
     let joint_markers = distances
@@ -455,7 +419,7 @@ fn prepare(data: &SolverData, config: &SolverTrainConfig) -> Result<(SolverMeta,
             order
                 .into_iter()
                 .enumerate()
-                .take_while(|(rank, k)| *rank < MIN_MARKERS_PER_JOINT || row[*k] < config.link_threshold_mm)
+                .take_while(|(rank, k)| *rank < MIN_MARKERS_PER_JOINT || row[*k] < config.net.link_threshold_mm)
                 .take(MAX_MARKERS_PER_JOINT)
                 .map(|(_, k)| k)
                 .collect()
@@ -472,7 +436,7 @@ fn prepare(data: &SolverData, config: &SolverTrainConfig) -> Result<(SolverMeta,
     }
     let meta = SolverMeta {
         markers: data.markers.clone(),
-        skeleton: locap_core::Skeleton::new(skeleton_joints).map_err(|e| NnError::Data(e.to_string()))?,
+        skeleton: locap_core::Skeleton::new(skeleton_joints)?,
         graph,
         frame: config.frame.clone(),
         lab: data.shards[0].lab,
@@ -483,82 +447,31 @@ fn prepare(data: &SolverData, config: &SolverTrainConfig) -> Result<(SolverMeta,
             variant: config.variant,
             markers: m,
             joints: j,
-            channels: config.channels,
-            global: if config.variant == Variant::Mlp { 4 * config.global } else { config.global },
+            channels: config.net.channels,
+            global: if config.variant == Variant::Mlp { 4 * config.net.global } else { config.net.global },
         },
         training: serde_json::Value::Null,
     };
     Ok((meta, takes))
 }
 
-/// Trains a solver on `data`; `progress` is called after every step.
-///
-/// # Errors
-/// Unusable settings or data, or checkpoints that cannot be written or read.
-pub fn train_solver(
-    data: &SolverData,
-    config: &SolverTrainConfig,
-    checkpoints: Option<&Checkpoints>,
-    progress: &mut dyn FnMut(&SolverProgress),
-) -> Result<(Solver, SolverReport), NnError> {
-    config.validate()?;
-    let (meta, takes) = prepare(data, config)?;
-    crate::limits::check_weights(meta.architecture.weights(&meta.graph))?;
-    let (m, j) = (meta.markers.len(), meta.skeleton.len());
-    // Frames: the tail of every take is validation.
-    let mut train_frames: Vec<(usize, usize)> = Vec::new();
-    let mut valid_frames: Vec<(usize, usize)> = Vec::new();
-    for (i, d) in takes.iter().enumerate() {
-        let held = (d.frames as f64 * config.validation_fraction).ceil() as usize;
-        train_frames.extend((0..d.frames - held.min(d.frames)).map(|f| (i, f)));
-        valid_frames.extend((d.frames - held.min(d.frames)..d.frames).map(|f| (i, f)));
-    }
-    if train_frames.is_empty() {
-        return Err(NnError::Data("no training frames".into()));
-    }
-    let stride = valid_frames.len().div_ceil(config.validation_frames.max(1)).max(1);
-    let valid_frames: Vec<(usize, usize)> = valid_frames.into_iter().step_by(stride).collect();
+/// The solver's training, for the harness.
+struct SolverTask<'a> {
+    config: &'a SolverTrainConfig,
+    meta: SolverMeta,
+    takes: Vec<TakeData>,
+    train_frames: Vec<(usize, usize)>,
+    valid_frames: Vec<(usize, usize)>,
+    /// The loss's parts on the training device.
+    train_parts: LossParts<'a>,
+    /// The report's fixed parts.
+    fixed: SolverReport,
+}
 
-    let device = Device::default().autodiff();
-    device.seed(config.seed);
-    let mut net = SolverNet::new(&meta.architecture, &meta.graph, &device);
-    let mut optimizer = AdamConfig::new().with_grad_clipping(Some(GradientClippingConfig::Norm(1.0))).init();
-    let mut report = SolverReport {
-        parameters: net.num_params(),
-        training_frames: train_frames.len(),
-        config: Some(config.clone()),
-        ..SolverReport::default()
-    };
-    let (model_path, optimizer_path) = match checkpoints {
-        Some(cp) => (Some(cp.dir.join("checkpoint.locapsv")), Some(cp.dir.join("optimizer.bin"))),
-        None => (None, None),
-    };
-    if let (Some(cp), Some(mp), Some(op)) = (checkpoints, &model_path, &optimizer_path) {
-        std::fs::create_dir_all(&cp.dir)
-            .map_err(|source| NnError::Io { path: cp.dir.display().to_string(), source })?;
-        if cp.resume && mp.exists() {
-            let saved = Solver::from_bytes(&read_file(mp)?, &device)?;
-            if saved.meta.markers != meta.markers || saved.meta.architecture != meta.architecture {
-                return Err(NnError::Data(format!(
-                    "{}: the checkpoint has other markers or another network than this run",
-                    mp.display()
-                )));
-            }
-            let previous: SolverReport = serde_json::from_value(saved.meta.training.clone())
-                .map_err(|e| NnError::BadModel(format!("checkpoint report: {e}")))?;
-            net = saved.net;
-            optimizer = optimizer
-                .from_bytes(Bytes::from_bytes_vec(read_file(op)?))
-                .map_err(|e| NnError::BadModel(format!("{}: {e:?}", op.display())))?;
-            report.steps = previous.steps;
-            report.training_loss = previous.training_loss;
-            report.validation_loss = previous.validation_loss;
-            report.validation_jpe_mm = previous.validation_jpe_mm;
-            report.validation_joe_deg = previous.validation_joe_deg;
-        }
-    }
-
-    let parts = |device: &Device| {
+impl<'a> SolverTask<'a> {
+    /// What the loss needs besides a batch, on `device`.
+    fn parts(meta: &SolverMeta, config: &'a SolverTrainConfig, device: &Device) -> LossParts<'a> {
+        let j = meta.skeleton.len();
         let mask_r: Vec<f32> = meta.rotating.iter().map(|r| if *r { 1.0 } else { 0.0 }).collect();
         let mask_o: Vec<f32> = (0..j).map(|k| if k == 0 { 0.0 } else { 1.0 }).collect();
         let fixed: Vec<f32> =
@@ -570,80 +483,129 @@ pub fn train_solver(
             rotating_count: mask_r.iter().sum(),
             rotating: Tensor::from_data(TensorData::new(mask_r, [1, j, 1, 1]), device),
             non_root: Tensor::from_data(TensorData::new(mask_o, [1, j, 1]), device),
-            parents: &meta.graph.parents,
+            parents: meta.graph.parents.clone(),
             config,
         }
-    };
-    let train_parts = parts(&device);
-    let validate = |net: &SolverNet| -> Option<(f64, f64, f64)> {
-        if valid_frames.is_empty() {
+    }
+}
+
+impl Task for SolverTask<'_> {
+    type Net = SolverNet;
+    type Validation = SolverValidation;
+    type Report = SolverReport;
+    type Model = Solver;
+    const CHECKPOINT: &'static str = "checkpoint.locapsv";
+
+    fn init(&self, device: &Device) -> SolverNet {
+        SolverNet::new(&self.meta.architecture, &self.meta.graph, device)
+    }
+
+    fn loss(&self, net: &SolverNet, step: usize, device: &Device) -> Result<StepLoss, NnError> {
+        let (m, j) = (self.meta.markers.len(), self.meta.skeleton.len());
+        let mut rng = rng_for(self.config.seed, step as u64, 0);
+        let picks: Vec<(usize, usize)> =
+            (0..self.config.batch).map(|_| self.train_frames[rng.random_range(0..self.train_frames.len())]).collect();
+        let batch = Batch::new(&self.takes, &picks, m, j, device);
+        let (loss, _, _) = self.train_parts.loss(net, &batch);
+        Ok(StepLoss { loss, learn: true })
+    }
+
+    fn validate(&self, net: &SolverNet, device: &Device) -> Option<SolverValidation> {
+        if self.valid_frames.is_empty() {
             return None;
         }
-        let inner = device.clone().without_autodiff();
-        let valid_net = net.valid();
-        let vp = parts(&inner);
+        let (m, j) = (self.meta.markers.len(), self.meta.skeleton.len());
+        let vp = SolverTask::parts(&self.meta, self.config, device);
         let (mut loss, mut jpe, mut joe, mut n) = (0.0, 0.0, 0.0, 0.0);
-        for chunk in valid_frames.chunks(512) {
-            let batch = Batch::new(&takes, chunk, m, j, &inner);
-            let (l, rot, pos) = vp.loss(&valid_net, &batch);
+        for chunk in self.valid_frames.chunks(512) {
+            let batch = Batch::new(&self.takes, chunk, m, j, device);
+            let (l, rot, pos) = vp.loss(net, &batch);
             let v = |t: TensorData| t.try_to_vec::<f32>().unwrap_or_default();
             let (p, r) = (v(pos.into_data()), v(rot.into_data()));
             let (bp, br) = (v(batch.positions.into_data()), v(batch.rotations.into_data()));
-            let (e_pos, e_rot) = errors(&r, &p, &br, &bp, &meta.rotating);
+            let (e_pos, e_rot) = errors(&r, &p, &br, &bp, &self.meta.rotating);
             let w = chunk.len() as f64;
             loss += l.into_scalar::<f32>() as f64 * w;
             jpe += e_pos * w;
             joe += e_rot * w;
             n += w;
         }
-        Some((loss / n, jpe / n, joe / n))
-    };
-
-    let mut interval = (0.0, 0usize);
-    for step in report.steps..config.steps {
-        let started = Instant::now();
-        let mut rng = rng_for(config.seed, step as u64, 0);
-        let picks: Vec<(usize, usize)> =
-            (0..config.batch).map(|_| train_frames[rng.random_range(0..train_frames.len())]).collect();
-        let batch = Batch::new(&takes, &picks, m, j, &device);
-        let lr = config.learning_rate_at(step);
-        let (loss, _, _) = train_parts.loss(&net, &batch);
-        let value: f32 = loss.clone().into_scalar();
-        if !value.is_finite() {
-            return Err(NnError::Data(format!("the loss is not finite at step {step}; lower the learning rate")));
-        }
-        let grads = GradientsParams::from_grads(loss.backward(), &net);
-        net = optimizer.step(lr, net, grads);
-        report.step_seconds += started.elapsed().as_secs_f64();
-        report.steps_this_run += 1;
-        report.steps = step + 1;
-        interval.0 += value as f64;
-        interval.1 += 1;
-        let done = step + 1 == config.steps;
-        let mut validation = None;
-        if (step + 1) % config.validate_every.max(1) == 0 || done {
-            report.training_loss.push((step + 1, interval.0 / interval.1 as f64));
-            interval = (0.0, 0);
-            if let Some((l, jpe, joe)) = validate(&net) {
-                report.validation_loss.push((step + 1, l));
-                report.validation_jpe_mm.push((step + 1, jpe));
-                report.validation_joe_deg.push((step + 1, joe));
-                validation = Some((jpe, joe));
-            }
-        }
-        progress(&SolverProgress { step: step + 1, steps: config.steps, loss: value as f64, validation });
-        if let (Some(mp), Some(op)) = (&model_path, &optimizer_path)
-            && ((config.checkpoint_every > 0 && (step + 1) % config.checkpoint_every == 0) || done)
-        {
-            let mut meta = meta.clone();
-            meta.training = serde_json::to_value(&report).map_err(|e| NnError::Data(e.to_string()))?;
-            write_file(mp, &Solver::from_parts(meta, net.clone(), &device).to_bytes()?)?;
-            let state = optimizer.into_bytes().map_err(|e| NnError::Data(format!("optimizer state: {e:?}")))?;
-            write_file(op, &state)?;
-        }
+        Some(SolverValidation { loss: loss / n, jpe_mm: jpe / n, joe_deg: joe / n })
     }
-    let mut meta = meta;
-    meta.training = serde_json::to_value(&report).map_err(|e| NnError::Data(e.to_string()))?;
-    let inner = device.without_autodiff();
-    Ok((Solver::from_parts(meta, net.valid(), &inner), report))
+
+    fn report(&self, history: &History<SolverValidation>) -> SolverReport {
+        let series = |f: fn(&SolverValidation) -> f64| history.validation.iter().map(|(s, v)| (*s, f(v))).collect();
+        let mut report = SolverReport {
+            training_loss: history.training.clone(),
+            validation_loss: series(|v| v.loss),
+            validation_jpe_mm: series(|v| v.jpe_mm),
+            validation_joe_deg: series(|v| v.joe_deg),
+            ..self.fixed.clone()
+        };
+        (report.steps, report.step_seconds, report.steps_this_run, report.parameters) = history.counts();
+        report
+    }
+
+    fn history(report: SolverReport) -> History<SolverValidation> {
+        let validation = report
+            .validation_loss
+            .iter()
+            .zip(&report.validation_jpe_mm)
+            .zip(&report.validation_joe_deg)
+            .map(|((&(step, loss), &(_, jpe_mm)), &(_, joe_deg))| (step, SolverValidation { loss, jpe_mm, joe_deg }))
+            .collect();
+        History { steps: report.steps, training: report.training_loss, validation, ..History::default() }
+    }
+
+    fn model(&self, net: SolverNet, training: serde_json::Value, device: &Device) -> Solver {
+        Solver::from_parts(SolverMeta { training, ..self.meta.clone() }, net, device)
+    }
+
+    fn fits(&self, saved: &Solver) -> bool {
+        saved.meta.markers == self.meta.markers && saved.meta.architecture == self.meta.architecture
+    }
+}
+
+/// Trains a solver on `data`; `progress` is called after every step.
+///
+/// # Errors
+/// Unusable settings or data, a loss that is not finite, or checkpoints that cannot be
+/// written or read.
+pub fn train_solver(
+    data: &SolverData,
+    config: &SolverTrainConfig,
+    checkpoints: Option<Checkpoints<'_>>,
+    progress: &mut dyn FnMut(&SolverProgress),
+) -> Result<(Solver, SolverReport), NnError> {
+    config.validate()?;
+    let (meta, takes) = prepare(data, config)?;
+    crate::limits::check_weights(meta.architecture.weights(&meta.graph))?;
+    // Frames: the tail of every take is validation.
+    let mut train_frames: Vec<(usize, usize)> = Vec::new();
+    let mut valid_frames: Vec<(usize, usize)> = Vec::new();
+    for (i, d) in takes.iter().enumerate() {
+        let held = (d.frames as f64 * config.validation_fraction).ceil() as usize;
+        train_frames.extend((0..d.frames - held.min(d.frames)).map(|f| (i, f)));
+        valid_frames.extend((d.frames - held.min(d.frames)..d.frames).map(|f| (i, f)));
+    }
+    if train_frames.is_empty() {
+        return Err(NnError::NoData { what: "training frames" });
+    }
+    let stride = valid_frames.len().div_ceil(config.validation_frames.max(1)).max(1);
+    let valid_frames: Vec<(usize, usize)> = valid_frames.into_iter().step_by(stride).collect();
+    let device = Device::default().autodiff();
+    let task = SolverTask {
+        config,
+        train_parts: SolverTask::parts(&meta, config, &device),
+        fixed: SolverReport {
+            training_frames: train_frames.len(),
+            config: Some(config.clone()),
+            ..SolverReport::default()
+        },
+        meta,
+        takes,
+        train_frames,
+        valid_frames,
+    };
+    fit(&task, &config.fit(), &device, checkpoints, progress)
 }

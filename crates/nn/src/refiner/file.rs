@@ -1,17 +1,10 @@
 //! The refiner model file and inference (LocalMoCap section 3.1).
 //!
-//! # Model file (version 1, one file, little-endian)
+//! # Model file
 //!
-//! | bytes | content |
-//! |---|---|
-//! | 8 | magic `LOCAPNN\0` |
-//! | 4 | `u32` format version (1) |
-//! | 4 | `u32` length `H` of the metadata |
-//! | `H` | UTF-8 JSON [`ModelMeta`]: marker labels, neighbour graph, local-frame definition, normalisation statistics, window, architecture, training summary |
-//! | rest | the weights as a burn record (burnpack bytes, `ModuleRecord::into_bytes`) |
-//!
-//! One file keeps the weights and what is needed to use them together: a model is never run
-//! with another model's statistics or graph. A take lacking any of the model's markers is
+//! The layout both kinds share ([`crate::file`]) with magic `LOCAPNN\0` and a [`ModelMeta`]:
+//! marker labels, neighbour graph, local-frame definition, normalisation statistics, window,
+//! architecture, training summary. A take lacking any of the model's markers is
 //! refused ([`NnError::MarkerSet`]); markers of the take that the model does not know are left
 //! as EDM filled them.
 //!
@@ -26,24 +19,15 @@
 //! faded in from each gap's captured borders over `taper_frames` frames
 //! ([`crate::features::offset_taper`]).
 
+use super::net::{Architecture, RefinerNet, gather_indices};
 use crate::NnError;
 use crate::features::{LocalTake, Normalisation, input_values, marker_order, offset_taper, prepare};
-use crate::model::{Architecture, RefinerNet, gather_indices};
-use burn::module::Module;
+use crate::file::{self, Kind};
 use burn::prelude::*;
-use burn::store::ModuleRecord;
-use burn::tensor::Bytes;
 use locap_clean::local_frame::FrameDefinition;
 use locap_clean::{FillMethod, Filled};
 use locap_core::{Take, Vec3};
 use serde::{Deserialize, Serialize};
-
-/// Magic bytes of a model file.
-pub const MAGIC: &[u8; 8] = b"LOCAPNN\0";
-/// Format version written.
-pub const VERSION: u32 = 1;
-/// Largest metadata accepted.
-const MAX_META_BYTES: u32 = 64 << 20;
 
 /// What a model file carries besides its weights.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -147,16 +131,7 @@ impl Refiner {
     /// # Errors
     /// burn cannot serialise the weights.
     pub fn to_bytes(&self) -> Result<Vec<u8>, NnError> {
-        let json = serde_json::to_vec(&self.meta).map_err(|e| NnError::BadModel(e.to_string()))?;
-        let weights =
-            self.net.clone().into_record().into_bytes().map_err(|e| NnError::BadModel(format!("weights: {e:?}")))?;
-        let mut out = Vec::with_capacity(16 + json.len() + weights.len());
-        out.extend_from_slice(MAGIC);
-        out.extend_from_slice(&VERSION.to_le_bytes());
-        out.extend_from_slice(&(json.len() as u32).to_le_bytes());
-        out.extend_from_slice(&json);
-        out.extend_from_slice(&weights);
-        Ok(out)
+        file::write(Kind::Refiner, &self.meta, self.net.clone())
     }
 
     /// Reads a model file's bytes onto `device`.
@@ -164,27 +139,9 @@ impl Refiner {
     /// # Errors
     /// Not a model file, another version, damaged metadata or weights.
     pub fn from_bytes(bytes: &[u8], device: &Device) -> Result<Refiner, NnError> {
-        let bad = |what: &str| NnError::BadModel(what.to_string());
-        if bytes.len() < 16 || &bytes[..8] != MAGIC {
-            return Err(bad("the file does not start with LOCAPNN (not a locap refiner model)"));
-        }
-        let word = |i: usize| u32::from_le_bytes([bytes[i], bytes[i + 1], bytes[i + 2], bytes[i + 3]]);
-        let version = word(8);
-        if version != VERSION {
-            return Err(NnError::BadModel(format!(
-                "model format version {version}; this locap reads version {VERSION}"
-            )));
-        }
-        let len = word(12);
-        if len > MAX_META_BYTES || 16 + len as usize > bytes.len() {
-            return Err(bad("the metadata length runs past the end of the file"));
-        }
-        let meta: ModelMeta = serde_json::from_slice(&bytes[16..16 + len as usize])
-            .map_err(|e| NnError::BadModel(format!("metadata: {e}")))?;
+        let (meta, weights) = file::read::<ModelMeta>(Kind::Refiner, bytes)?;
         let mut refiner = Refiner::new(meta, device)?;
-        let record = ModuleRecord::from_bytes(Bytes::from_bytes_vec(bytes[16 + len as usize..].to_vec()))
-            .map_err(|e| NnError::BadModel(format!("weights: {e:?}")))?;
-        refiner.net = refiner.net.try_load_record(record).map_err(|e| NnError::BadModel(format!("weights: {e:?}")))?;
+        refiner.net = weights.load(refiner.net)?;
         Ok(refiner)
     }
 
@@ -262,6 +219,22 @@ impl Refiner {
     }
 }
 
+impl crate::harness::Model for Refiner {
+    type Net = RefinerNet;
+
+    fn to_bytes(&self) -> Result<Vec<u8>, NnError> {
+        Refiner::to_bytes(self)
+    }
+
+    fn from_bytes(bytes: &[u8], device: &Device) -> Result<Refiner, NnError> {
+        Refiner::from_bytes(bytes, device)
+    }
+
+    fn into_parts(self) -> (RefinerNet, serde_json::Value) {
+        (self.net, self.meta.training)
+    }
+}
+
 /// Fills every gap of `take` with EDM and refines the markers of each of `refiners` (a body
 /// model and hand models together): each model's markers come from its own refinement, the
 /// other markers from EDM.
@@ -277,7 +250,7 @@ pub fn refine_all(take: &Take, refiners: &[Refiner]) -> Result<Filled, NnError> 
 /// # Errors
 /// As [`refine_all`].
 pub fn refine_all_of(take: &Take, refiners: &[&Refiner]) -> Result<Filled, NnError> {
-    let (first, rest) = refiners.split_first().ok_or_else(|| NnError::Data("no refiner given".into()))?;
+    let (first, rest) = refiners.split_first().ok_or_else(|| NnError::NoRefiner)?;
     let mut out = first.refine(take)?;
     for refiner in rest {
         let order = marker_order(take, &refiner.meta.markers)?;

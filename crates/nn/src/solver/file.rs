@@ -1,14 +1,10 @@
 //! The solver model file and inference (LocalMoCap section 3.2).
 //!
-//! # Model file (version 1, one file, little-endian)
+//! # Model file
 //!
-//! | bytes | content |
-//! |---|---|
-//! | 8 | magic `LOCAPSV\0` |
-//! | 4 | `u32` format version (1) |
-//! | 4 | `u32` length `H` of the metadata |
-//! | `H` | UTF-8 JSON [`SolverMeta`]: markers, skeleton, graph, local frame, lab frame, input and output normalisation, architecture, training summary |
-//! | rest | the weights as a burn record (burnpack bytes) |
+//! The layout both kinds share ([`crate::file`]) with magic `LOCAPSV\0` and a [`SolverMeta`]:
+//! markers, skeleton, graph, local frame, lab frame, input and output normalisation,
+//! architecture, training summary.
 //!
 //! # Inference ([`Solver::solve`])
 //!
@@ -25,23 +21,14 @@ use super::data::{Cleaned, LocalInput, lab_rotation};
 use super::net::{Gathers, JOINT_OUTPUTS, SolverArchitecture, SolverGraph, SolverNet};
 use crate::NnError;
 use crate::features::{Normalisation, input_values};
-use burn::module::Module;
+use crate::file::{self, Kind};
 use burn::prelude::*;
-use burn::store::ModuleRecord;
-use burn::tensor::Bytes;
 use locap_clean::local_frame::FrameDefinition;
 use locap_clean::{CleanConfig, Filler};
 use locap_core::{Joint, Motion, Quat, Skeleton, Take, Vec3};
 use locap_synth::synthesize::LabFrame;
 use nalgebra::{Matrix3, Rotation3};
 use serde::{Deserialize, Serialize};
-
-/// Magic bytes of a solver model file.
-pub const MAGIC: &[u8; 8] = b"LOCAPSV\0";
-/// Format version written.
-pub const VERSION: u32 = 1;
-/// Largest metadata accepted.
-const MAX_META_BYTES: u32 = 64 << 20;
 
 /// Spread of the network's offset and translation outputs.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -119,34 +106,6 @@ impl SolverMeta {
     }
 }
 
-/// `magic, version, metadata JSON, weights` as one file.
-fn pack(json: &[u8], weights: &[u8]) -> Vec<u8> {
-    let mut out = Vec::with_capacity(16 + json.len() + weights.len());
-    out.extend_from_slice(MAGIC);
-    out.extend_from_slice(&VERSION.to_le_bytes());
-    out.extend_from_slice(&(json.len() as u32).to_le_bytes());
-    out.extend_from_slice(json);
-    out.extend_from_slice(weights);
-    out
-}
-
-/// The metadata and weight bytes of a file written by [`pack`].
-fn unpack(bytes: &[u8]) -> Result<(&[u8], &[u8]), NnError> {
-    let bad = |what: String| NnError::BadModel(what);
-    if bytes.len() < 16 || &bytes[..8] != MAGIC {
-        return Err(bad("the file does not start with LOCAPSV (not a locap solver model)".into()));
-    }
-    let word = |i: usize| u32::from_le_bytes([bytes[i], bytes[i + 1], bytes[i + 2], bytes[i + 3]]);
-    if word(8) != VERSION {
-        return Err(bad(format!("solver model format version {}; this locap reads version {VERSION}", word(8))));
-    }
-    let len = word(12);
-    if len > MAX_META_BYTES || 16 + len as usize > bytes.len() {
-        return Err(bad("the metadata length runs past the end of the file".into()));
-    }
-    Ok((&bytes[16..16 + len as usize], &bytes[16 + len as usize..]))
-}
-
 /// The network's outputs decoded, as plain values.
 #[derive(Debug, Clone)]
 pub struct Decoded {
@@ -211,6 +170,22 @@ pub struct Solver {
     device: Device,
 }
 
+impl crate::harness::Model for Solver {
+    type Net = SolverNet;
+
+    fn to_bytes(&self) -> Result<Vec<u8>, NnError> {
+        Solver::to_bytes(self)
+    }
+
+    fn from_bytes(bytes: &[u8], device: &Device) -> Result<Solver, NnError> {
+        Solver::from_bytes(bytes, device)
+    }
+
+    fn into_parts(self) -> (SolverNet, serde_json::Value) {
+        (self.net, self.meta.training)
+    }
+}
+
 /// Frames per inference batch.
 const BATCH_FRAMES: usize = 512;
 
@@ -235,10 +210,7 @@ impl Solver {
     /// # Errors
     /// burn cannot serialise the weights.
     pub fn to_bytes(&self) -> Result<Vec<u8>, NnError> {
-        let json = serde_json::to_vec(&self.meta).map_err(|e| NnError::BadModel(e.to_string()))?;
-        let weights =
-            self.net.clone().into_record().into_bytes().map_err(|e| NnError::BadModel(format!("weights: {e:?}")))?;
-        Ok(pack(&json, &weights))
+        file::write(Kind::Solver, &self.meta, self.net.clone())
     }
 
     /// Reads a model file's bytes onto `device`.
@@ -246,12 +218,9 @@ impl Solver {
     /// # Errors
     /// Not a solver model file, another version, damaged metadata or weights.
     pub fn from_bytes(bytes: &[u8], device: &Device) -> Result<Solver, NnError> {
-        let (json, weights) = unpack(bytes)?;
-        let meta: SolverMeta = serde_json::from_slice(json).map_err(|e| NnError::BadModel(format!("metadata: {e}")))?;
+        let (meta, weights) = file::read::<SolverMeta>(Kind::Solver, bytes)?;
         let mut solver = Solver::new(meta, device)?;
-        let record = ModuleRecord::from_bytes(Bytes::from_bytes_vec(weights.to_vec()))
-            .map_err(|e| NnError::BadModel(format!("weights: {e:?}")))?;
-        solver.net = solver.net.try_load_record(record).map_err(|e| NnError::BadModel(format!("weights: {e:?}")))?;
+        solver.net = weights.load(solver.net)?;
         Ok(solver)
     }
 
@@ -281,7 +250,7 @@ impl Solver {
         let t = input.local.frames;
         let j = self.meta.skeleton.len();
         if t == 0 {
-            return Err(NnError::Data("the take has no frames".into()));
+            return Err(NnError::EmptyTake);
         }
         if decoded.rotations.len() != t * j * 9 || decoded.translation_mm.len() != t * 3 {
             return Err(NnError::BadModel("the network gave outputs of the wrong size".into()));
@@ -326,7 +295,7 @@ impl Solver {
             let lab_mm = frame.to_world(&Vec3::new(tr[0] as f64, tr[1] as f64, tr[2] as f64));
             root.push(self.meta.lab.to_motion(lab_mm));
         }
-        Motion::new(skeleton, rotations, root, rate_hz).map_err(|e| NnError::Data(e.to_string()))
+        Motion::new(skeleton, rotations, root, rate_hz).map_err(NnError::Skeleton)
     }
 
     /// The network on every frame of `input`.

@@ -22,6 +22,25 @@ use burn::prelude::*;
 use burn::tensor::activation::leaky_relu;
 use serde::{Deserialize, Serialize};
 
+/// The network's settings in a training configuration; with the marker count they make its
+/// [`Architecture`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct NetConfig {
+    /// Graph-convolution features per marker.
+    pub channels: usize,
+    /// LSTM hidden size per direction.
+    pub hidden: usize,
+    /// Graph neighbours per marker.
+    pub neighbours: usize,
+}
+
+impl NetConfig {
+    /// The network of these settings for `markers` markers.
+    pub fn architecture(&self, markers: usize) -> Architecture {
+        Architecture { markers, neighbours: self.neighbours, channels: self.channels, hidden: self.hidden }
+    }
+}
+
 /// Size of the network (stored in the model file).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 pub struct Architecture {
