@@ -12,9 +12,8 @@
 //! 4. rigid Procrustes aligns the neighbours' embedded points onto their observed positions;
 //!    the marker's embedded point, carried along, is the fill. The alignment is weighted by
 //!    each neighbour's steadiness, `1 / (variance of its distance to the marker + 5^2 mm^2)`:
-//!    an addition to the paper's unweighted Procrustes, measured on real takes (`locap bench
-//!    fill`, 6 takes, 1481 real-statistics gaps: OMPE 68.1 mm unweighted, 50.3 mm weighted; the
-//!    floor barely matters, 49.7-51.1 mm for 2-10 mm). MDS fixes a point set only up
+//!    an addition to the paper's unweighted Procrustes, measured with `locap bench fill` on
+//!    real takes (figures in `docs/benchmarks.md`, "EDM"). MDS fixes a point set only up
 //!    to a mirror image, so both chiralities are aligned (each with a proper rotation, the
 //!    reflection check) and the better fit wins;
 //! 5. the fill is evaluated at the border frames too, where the marker is visible, and the
@@ -38,32 +37,20 @@
 //! - the neighbours must stand out of a line (RMS distance from their best line at least 0.2
 //!   times the marker's distance from their centroid): three markers along a forearm fix no
 //!   rotation about it, and keep constant distances to a wrist marker that turns about it
-//!   (CMU 85_12: LWRA carried by LWRB, LFRM and LELB drifts 250 mm).
+//!   (CMU 85_12: LWRA carried by LWRB, LFRM and LELB drifts away).
 //!
 //! Frames the rules refuse stay missing, and the caller reports them (all four head markers of
 //! KneeltoProne01 hidden over the last 240 frames: left missing, as the nearest neighbours left,
 //! the back plate, is too narrow for a head 0.4 m away); the second pass does not
 //! restart an edge fill from the sample where the first one stopped. An alternative, moving the
 //! marker's distances from the border's towards their means over the take, was measured and
-//! rejected: the pose at the border predicts the next frames better (mean error 1.3 -> 11.0 mm
-//! on KneeltoProne01).
+//! rejected: the pose at the border predicts the next frames better.
 //!
-//! Measured by hiding the first or last 240 frames of one marker at a time where it was
-//! captured (19680-29520 samples per take), EDM K=6, samples filled and mean / worst error:
-//!
-//! | take | before | after |
-//! |---|---|---|
-//! | CMU 85_02 (120 Hz) | 100%, 30.5 / 227 mm | 17%, 5.4 / 31 mm |
-//! | CMU 85_12 | 100%, 13.0 / 204 mm | 48%, 1.4 / 41 mm |
-//! | CMU 135_02 | 100%, 10.6 / 100 mm | 39%, 4.0 / 30 mm |
-//! | HDM05 bd_05-01_01 (120 Hz) | 100%, 9.2 / 74 mm | 59%, 1.8 / 26 mm |
-//! | KneeltoProne01 (240 Hz) | 100%, 2.0 / 35 mm | 88%, 1.4 / 31 mm |
-//! | numediart 03_rolling (175 Hz) | 100%, 18.0 / 374 mm | 50%, 1.7 / 26 mm |
-//!
-//! The limits were chosen on these takes (steadiness 6-15 mm, shape 5-10 mm and spread 0-0.2
-//! tried: looser limits fill up to twice as much of the CMU edges at worst errors of 60-145 mm).
+//! The limits were chosen on real takes by hiding the first or last 240 frames of one marker
+//! at a time where it was captured; that measurement (share of samples filled and mean / worst
+//! error per take, before and after the rules) is in `docs/benchmarks.md`, "EDM edge gaps".
 //! `tests/cleaning_real.rs` checks the result on the real edge occlusions of numediart
-//! 03_rolling and CMU 01_01, where fills broke segment distances by up to 528 mm before.
+//! 03_rolling and CMU 01_01, where fills used to break segment distances.
 //!
 //! Markers whose neighbours are missing at the same time are first skipped; a second pass lets
 //! already-filled markers serve as neighbours (captured neighbours are always preferred).

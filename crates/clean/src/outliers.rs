@@ -18,8 +18,8 @@
 //! The paper leaves the threshold open. Ours are physical accelerations (m/s^2, per body
 //! region) chosen on 120 Hz takes, but a finite-difference acceleration is not only motion: a
 //! sample displaced by `d` mm reads `2 d rate^2`, so the same 150 m/s^2 that needs a 5.2 mm
-//! spike at 120 Hz is reached by 1.3 mm of jitter at 240 Hz (on the 240 Hz KneeltoProne01 take
-//! it flagged 567 windows, half of them moving the data by less than 1.5 mm). The threshold
+//! spike at 120 Hz is reached by 1.3 mm of jitter at 240 Hz (a fixed threshold floods a
+//! 240 Hz take with windows that move the data by a millimetre). The threshold
 //! of a marker in a take at `rate` Hz is therefore
 //!
 //! `max(threshold * max(1, (rate / 120)^2), noise_factor * noise)`
@@ -34,14 +34,11 @@
 //!   1.54 scale units), so 8 times the median (the default [`NOISE_FACTOR`]) is 12 scale units,
 //!   out of reach of noise; real jitter has heavier tails, which the prominence and reversal
 //!   tests and the rate term handle. On the takes in `../shared/data` the noise term never
-//!   decides (median noise 1-75 m/s^2, KneeltoProne01's jitteriest marker at 75 m/s^2 gives
-//!   600 m/s^2, the rate term at 240 Hz): it guards takes noisier than these.
+//!   decides: it guards takes noisier than these.
 //!
-//! Measured (`tests/cleaning_real.rs`, `locap clean` defaults): on the gap-free first 1206
-//! frames of KneeltoProne01 (240 Hz) 442 windows and 1818 changed samples before, 15 windows
-//! and 67 changed samples (0.09%) after; CMU 85_02 and HDM05 (120 Hz) are unchanged (0 and 1
-//! window). The windows still found on the whole 240 Hz take (24) move the data by 4.7-13.4 mm
-//! (10th-90th percentile; median 6.3 mm).
+//! `tests/cleaning_real.rs` checks the defaults on gap-free real takes at 120 and 240 Hz; the
+//! figures (windows and changed samples before and after these thresholds) are in
+//! `docs/benchmarks.md`, "Outlier thresholds".
 //!
 //! A "stuck" marker (exactly the same coordinates for several frames while the neighbours on
 //! its body segment move, as some systems repeat the last sample when tracking is lost) is reported and

@@ -138,6 +138,30 @@ impl Cleaned {
 }
 
 /// Cleans `take` with `config`, filling with `config.fill`.
+///
+/// ```
+/// use locap_clean::{CleanConfig, clean};
+/// use locap_core::{MarkerName, Take, Vec3};
+///
+/// // Four markers of one rigid segment moving along x; marker 0 is occluded for 10 frames.
+/// let names: Vec<MarkerName> = ["A", "B", "C", "D"].into_iter().map(MarkerName::parse).collect();
+/// let corners = [[0.0, 0.0, 0.0], [100.0, 0.0, 0.0], [0.0, 80.0, 0.0], [0.0, 0.0, 60.0]];
+/// let samples: Vec<Option<Vec3>> = (0..200)
+///     .flat_map(|f| corners.iter().enumerate().map(move |(k, c)| {
+///         let hidden = k == 0 && (90..100).contains(&f);
+///         (!hidden).then(|| Vec3::new(c[0] + 3.0 * f as f64, c[1], c[2] + 1000.0))
+///     }))
+///     .collect();
+/// let take = Take::from_samples(names, &samples, 120.0)?;
+///
+/// let cleaned = clean(&take, &CleanConfig::default());
+/// assert_eq!((cleaned.filled_samples(), cleaned.still_missing()), (10, 0));
+/// let filled = cleaned.take().position_mm(95, 0).unwrap();
+/// assert!((filled - Vec3::new(285.0, 0.0, 1000.0)).norm() < 1.0);
+/// // What to store with the take (`LOCAP:FILLED A 91-100`, `LOCAP:METHOD Edm K=6`, ...).
+/// assert_eq!(cleaned.provenance().filled[0].frames, 90..100);
+/// # Ok::<(), locap_core::TakeError>(())
+/// ```
 pub fn clean(take: &Take, config: &CleanConfig) -> Cleaned {
     match clean_with(take, config, &config.fill) {
         Ok(cleaned) => cleaned,

@@ -323,8 +323,8 @@ fn a_tiny_solver_learns_and_solves_takes() {
     let loaded = Solver::from_bytes(&solver.to_bytes().unwrap(), &device).unwrap();
     assert_eq!(loaded.meta, solver.meta);
     let take = &test.shards[0].observed;
-    let (a, cleaned) = solver.solve(take, None).unwrap();
-    let (b, _) = loaded.solve(take, None).unwrap();
+    let (a, cleaned) = solver.solve(take, &locap_clean::FillConfig::default()).unwrap();
+    let (b, _) = loaded.solve(take, &locap_clean::FillConfig::default()).unwrap();
     assert_eq!(a, b);
     assert_eq!((a.frame_count(), a.frame_rate_hz()), (take.frame_count(), take.frame_rate_hz()));
     assert_eq!(cleaned.filled.take.missing_count(), 0);

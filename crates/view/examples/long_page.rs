@@ -51,7 +51,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .collect();
     let mut take = Take::from_samples(source.markers().to_vec(), &samples, source.frame_rate_hz())?;
     take.up_axis = source.up_axis;
-    let states = locap_view::sample_states(&take, &[], &[])?;
+    let states = locap_view::sample_states(&take, &locap_core::Provenance::default());
     let started = Instant::now();
     let edges = locap_clean::neighbours::stable_edges(&take, 2);
     let html = locap_view::render(&locap_view::ViewInput {
