@@ -642,27 +642,10 @@ fn splitmix(x: u64) -> u64 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use locap_core::MarkerName;
 
     /// Marker 0 rides a rigid cluster with markers 1-5 that moves and turns; names from `name`.
     fn cluster(frames: usize, name: impl Fn(usize) -> String) -> Take {
-        let offsets = [
-            Vec3::new(0.0, 0.0, 0.0),
-            Vec3::new(120.0, 10.0, 0.0),
-            Vec3::new(0.0, 90.0, 30.0),
-            Vec3::new(40.0, 40.0, 110.0),
-            Vec3::new(-70.0, 20.0, 50.0),
-            Vec3::new(30.0, -80.0, 20.0),
-        ];
-        let names = (0..offsets.len()).map(|i| MarkerName::parse(&name(i))).collect();
-        let mut samples = Vec::new();
-        for f in 0..frames {
-            let a = f as f64 * 0.03;
-            let rot = nalgebra::Rotation3::from_euler_angles(0.3 * a, a, 0.5 * a.sin());
-            let base = Vec3::new(5.0 * f as f64, 100.0 * a.cos(), 900.0);
-            samples.extend(offsets.iter().map(|o| Some(base + rot * o)));
-        }
-        Take::from_samples(names, &samples, 120.0).unwrap()
+        locap_testkit::rigid_cluster(frames, 6, name, |_, _| [0.0; 3])
     }
 
     fn hide(take: &mut Take, marker: usize, frames: Range<usize>) {

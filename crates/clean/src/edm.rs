@@ -444,25 +444,9 @@ mod tests {
     /// Marker 0 rides a rigid cluster with markers 1-4 that moves and turns; from frame
     /// `drift_from` marker 1 slides off the cluster at 1 mm per frame.
     fn cluster_take(frames: usize, drift_from: usize) -> Take {
-        let offsets = [
-            Vec3::new(0.0, 0.0, 0.0),
-            Vec3::new(120.0, 10.0, 0.0),
-            Vec3::new(0.0, 90.0, 30.0),
-            Vec3::new(40.0, 40.0, 110.0),
-            Vec3::new(-70.0, 20.0, 50.0),
-        ];
-        let names = (0..offsets.len()).map(|i| MarkerName::parse(&format!("M{i}"))).collect();
-        let mut samples = Vec::new();
-        for f in 0..frames {
-            let a = f as f64 * 0.03;
-            let rot = nalgebra::Rotation3::from_euler_angles(0.3 * a, a, 0.5 * a.sin());
-            let base = Vec3::new(5.0 * f as f64, 100.0 * a.cos(), 900.0);
-            for (k, o) in offsets.iter().enumerate() {
-                let drift = if k == 1 { f.saturating_sub(drift_from) as f64 } else { 0.0 };
-                samples.push(Some(base + rot * (o + Vec3::new(drift, 0.0, 0.0))));
-            }
-        }
-        Take::from_samples(names, &samples, 120.0).unwrap()
+        let drift =
+            |f: usize, k: usize| if k == 1 { [f.saturating_sub(drift_from) as f64, 0.0, 0.0] } else { [0.0; 3] };
+        locap_testkit::rigid_cluster(frames, 5, |k| format!("M{k}"), drift)
     }
 
     #[test]

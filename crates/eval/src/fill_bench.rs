@@ -380,23 +380,7 @@ mod tests {
     /// A rigid cluster: EDM is exact, linear is not.
     #[test]
     fn benchmark_scores_hidden_samples_only() {
-        let offsets = [
-            Vec3::new(0.0, 0.0, 0.0),
-            Vec3::new(120.0, 10.0, 0.0),
-            Vec3::new(0.0, 90.0, 30.0),
-            Vec3::new(40.0, 40.0, 110.0),
-            Vec3::new(-70.0, 20.0, 50.0),
-        ];
-        let names = (0..offsets.len()).map(|i| MarkerName::parse(&format!("M{i}"))).collect();
-        let mut samples = Vec::new();
-        for f in 0..600 {
-            let a = f as f64 * 0.02;
-            let rot = nalgebra::Rotation3::from_euler_angles(0.3 * a, a, 0.5 * a.sin());
-            for o in &offsets {
-                samples.push(Some(Vec3::new(3.0 * f as f64, 0.0, 900.0) + rot * o));
-            }
-        }
-        let take = Take::from_samples(names, &samples, 120.0).unwrap();
+        let take = locap_testkit::rigid_cluster(600, 5, |k| format!("M{k}"), |_, _| [0.0; 3]);
         let variants = [
             Variant { method: FillMethod::Edm, selection: Selection::Variance },
             Variant { method: FillMethod::Linear, selection: Selection::Variance },
