@@ -209,6 +209,10 @@ pub fn length_bin_labels() -> Vec<String> {
     LENGTH_BINS.iter().map(|&(lo, hi)| range_label(lo, hi)).collect()
 }
 
+/// One method's mean error by gap length, as benchmarks report it and charts draw it: the
+/// method's name and its `(bin label, mean error mm)` points, `None` where a bin has no samples.
+pub type ErrorByGapLength = (String, Vec<(String, Option<f64>)>);
+
 /// A gap-length histogram (`[n]` = gaps of `n` frames, as in [`GapStatistics`]) summed into
 /// [`LENGTH_BINS`].
 pub fn binned(histogram: &[usize]) -> [usize; LENGTH_BINS.len()] {

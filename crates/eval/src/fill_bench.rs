@@ -15,7 +15,7 @@
 use crate::gap_model::GapModel;
 use locap_clean::{FillConfig, FillError, FillMethod, Filled, Filler, fill_gaps, neighbours::Selection};
 use locap_core::Take;
-use locap_core::gaps::{LENGTH_BINS, range_label};
+use locap_core::gaps::{ErrorByGapLength, LENGTH_BINS, range_label};
 use rand::SeedableRng;
 use serde::{Deserialize, Serialize};
 use std::time::Instant;
@@ -315,7 +315,7 @@ pub fn run_candidates(
 impl FillBenchReport {
     /// Mean error by gap length as data series: per method, its name and `(bin label, mean
     /// mm)` points (`None` without samples), e.g. for `locap_view::plot::Chart::fill_error`.
-    pub fn error_by_gap_length(&self) -> Vec<(String, Vec<(String, Option<f64>)>)> {
+    pub fn error_by_gap_length(&self) -> Vec<ErrorByGapLength> {
         self.methods
             .iter()
             .map(|m| (m.method.clone(), m.by_gap_length.iter().map(|b| (b.label(), b.mean_mm)).collect()))

@@ -191,7 +191,7 @@ pub fn evaluate(
         })
         .collect::<Result<_, _>>()?;
     let mut fill_all = Mean::default();
-    let mut fill_by = vec![Mean::default(); GAP_BIN_COUNT];
+    let mut fill_by = [Mean::default(); GAP_BIN_COUNT];
     for (s, c) in shards.iter().zip(&cleaned) {
         let (a, b) = ompe(s, c);
         fill_all.merge(&a);

@@ -15,6 +15,7 @@
 
 use crate::ViewError;
 use locap_core::GapStatistics;
+use locap_core::gaps::ErrorByGapLength;
 use plotters::coord::Shift;
 use plotters::prelude::*;
 
@@ -151,7 +152,7 @@ impl Chart {
     ///
     /// # Errors
     /// No methods or no bins.
-    pub fn fill_error(methods: &[(String, Vec<(String, Option<f64>)>)], title: &str) -> Result<Chart, ViewError> {
+    pub fn fill_error(methods: &[ErrorByGapLength], title: &str) -> Result<Chart, ViewError> {
         if methods.is_empty() {
             return Err(ViewError::Empty("no methods".into()));
         }
