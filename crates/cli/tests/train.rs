@@ -177,6 +177,9 @@ fn a_shard_cut_short_is_an_error_naming_it() {
             locap().args(["train", what, "--data"]).arg(&path).arg("--out").arg(dir.path().join(out)).output().unwrap();
         let err = String::from_utf8_lossy(&out.stderr);
         assert_eq!(out.status.code(), Some(1), "train {what}: {err}");
-        assert!(err.contains(&format!("{}: ", path.display())) && err.contains("size does not match its header"), "{err}");
+        assert!(
+            err.contains(&format!("{}: ", path.display())) && err.contains("size does not match its header"),
+            "{err}"
+        );
     }
 }
