@@ -49,7 +49,7 @@ impl TrainingData {
     /// # Errors
     /// No takes, or a take lacking some of them.
     pub fn new(takes: Vec<Take>, names: Vec<String>) -> Result<TrainingData, NnError> {
-        let first = takes.first().ok_or_else(|| NnError::NoData { what: "training takes" })?;
+        let first = takes.first().ok_or(NnError::NoData { what: "training takes" })?;
         let markers: Vec<String> =
             first.markers().iter().filter(|n| !n.is_unlabeled()).map(|n| n.label.clone()).collect();
         let mut ordered = Vec::with_capacity(takes.len());

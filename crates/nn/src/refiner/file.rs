@@ -250,7 +250,7 @@ pub fn refine_all(take: &Take, refiners: &[Refiner]) -> Result<Filled, NnError> 
 /// # Errors
 /// As [`refine_all`].
 pub fn refine_all_of(take: &Take, refiners: &[&Refiner]) -> Result<Filled, NnError> {
-    let (first, rest) = refiners.split_first().ok_or_else(|| NnError::NoRefiner)?;
+    let (first, rest) = refiners.split_first().ok_or(NnError::NoRefiner)?;
     let mut out = first.refine(take)?;
     for refiner in rest {
         let order = marker_order(take, &refiner.meta.markers)?;
