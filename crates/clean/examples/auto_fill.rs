@@ -33,33 +33,23 @@ fn main() {
     let seed: u64 = get("--seed").map_or(0, |s| s.parse().expect("--seed"));
     let per_length: usize = get("--per-length").map_or(5, |s| s.parse().expect("--per-length"));
     let mut config = AutoConfig::default();
-    if let Some(v) = get("--blend") {
-        config.blend = v.parse().expect("--blend");
+    // Each flag overrides one setting; a value that does not parse stops the run, naming it.
+    fn set<T: std::str::FromStr>(value: Option<String>, flag: &str, field: &mut T) {
+        if let Some(v) = value {
+            *field = v.parse().unwrap_or_else(|_| panic!("{flag}: cannot read `{v}`"));
+        }
     }
+    set(get("--blend"), "--blend", &mut config.blend);
     if args.iter().any(|a| a == "--least-squares") {
         config.weighting = auto::Weighting::LeastSquares;
     }
-    if let Some(v) = get("--trials") {
-        config.trials = v.parse().expect("--trials");
-    }
-    if let Some(v) = get("--context") {
-        config.context_s = v.parse().expect("--context");
-    }
-    if let Some(v) = get("--pca-context") {
-        config.pca_context_s = v.parse().expect("--pca-context");
-    }
-    if let Some(v) = get("--pca-fit") {
-        config.pca_fit_frames = v.parse().expect("--pca-fit");
-    }
-    if let Some(v) = get("--interpolate") {
-        config.interpolate_s = v.parse().expect("--interpolate");
-    }
-    if let Some(v) = get("--markers") {
-        config.markers = v.parse().expect("--markers");
-    }
-    if let Some(v) = get("--pca-markers") {
-        config.pca_markers = v.parse().expect("--pca-markers");
-    }
+    set(get("--trials"), "--trials", &mut config.trials);
+    set(get("--context"), "--context", &mut config.context_s);
+    set(get("--pca-context"), "--pca-context", &mut config.pca_context_s);
+    set(get("--pca-fit"), "--pca-fit", &mut config.pca_fit_frames);
+    set(get("--interpolate"), "--interpolate", &mut config.interpolate_s);
+    set(get("--markers"), "--markers", &mut config.markers);
+    set(get("--pca-markers"), "--pca-markers", &mut config.pca_markers);
     eprintln!("{config:?}, seed {seed}, {per_length} gaps per length");
     for name in takes.split(',') {
         let Some(truth) = protocol::read_take(&path_of(name)) else { return };

@@ -92,34 +92,6 @@ impl Filler for auto::AutoConfig {
     }
 }
 
-impl<F: Filler + ?Sized> Filler for &F {
-    fn describe(&self) -> String {
-        (**self).describe()
-    }
-
-    fn fill(&self, take: &Take) -> Result<Filled, FillError> {
-        (**self).fill(take)
-    }
-
-    fn fill_recorded(&self, take: &Take) -> Result<(Filled, Vec<FillRecord>), FillError> {
-        (**self).fill_recorded(take)
-    }
-}
-
-impl<F: Filler + ?Sized> Filler for Box<F> {
-    fn describe(&self) -> String {
-        (**self).describe()
-    }
-
-    fn fill(&self, take: &Take) -> Result<Filled, FillError> {
-        (**self).fill(take)
-    }
-
-    fn fill_recorded(&self, take: &Take) -> Result<(Filled, Vec<FillRecord>), FillError> {
-        (**self).fill_recorded(take)
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
