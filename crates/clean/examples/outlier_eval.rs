@@ -74,9 +74,10 @@ fn main() {
         config.segment_neighbours = v.parse().expect("--neighbours");
     }
     println!(
-        "| take | Hz | frames | clean: windows | clean: samples | refill moves (median / max mm) | recall | precision |"
+        "| take | Hz | frames | clean: windows | clean: samples | refill moves (median / max mm) | noise (mm) | recall \
+         | precision |"
     );
-    println!("|---|---|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|---|---|");
     for rel in TAKES {
         let Some(path) = locap_testkit::shared_file(rel) else { continue };
         let full = locap_io::c3d::read_path(&path).expect("read").to_take().expect("take");
@@ -115,6 +116,15 @@ fn main() {
             }
         }
         moves.sort_by(f64::total_cmp);
+        // The marker noise to compare the moves with: the median distance of a sample from the
+        // local cubic through its neighbours, over every sample of the take.
+        let t = &truth;
+        let mut noise: Vec<f64> = (0..t.marker_count())
+            .filter(|m| !t.markers()[*m].is_unlabeled())
+            .flat_map(|m| (0..t.frame_count()).filter_map(move |f| outliers::deviation_mm(t, m, f)))
+            .collect();
+        noise.sort_by(f64::total_cmp);
+        let noise = noise.get(noise.len() / 2).copied().unwrap_or(0.0);
         let moved = if moves.is_empty() {
             "-".to_string()
         } else {
@@ -157,7 +167,7 @@ fn main() {
         let true_windows =
             hits.iter().filter(|o| injected.iter().any(|(m, f)| o.marker == *m && o.frames.contains(f))).count();
         println!(
-            "| {rel} | {} | {} | {} | {} | {moved} | {:.2} | {:.2} |",
+            "| {rel} | {} | {} | {} | {} | {moved} | {noise:.2} | {:.2} | {:.2} |",
             truth.frame_rate_hz(),
             truth.frame_count(),
             found.len(),

@@ -319,7 +319,8 @@ fn reverses(take: &Take, marker: usize, f: usize) -> bool {
 /// five frames: the acceleration (which a displacement and a fast motion both raise) says
 /// *where* to look, this distance says whether the sample is bad enough to replace.
 pub fn deviation_mm(take: &Take, marker: usize, f: usize) -> Option<f64> {
-    let q = |t: usize| take.position_mm(t, marker);
+    // Frames past the end are missing, not an error: `position_mm` would panic on them.
+    let q = |t: usize| if t < take.frame_count() { take.position_mm(t, marker) } else { None };
     let (a, b, c) = (q(f.checked_sub(1)?)?, q(f)?, q(f + 1)?);
     let outer = f.checked_sub(2).and_then(q).zip(q(f + 2));
     let fit = match outer {
@@ -541,6 +542,9 @@ mod tests {
         // The knee's fastest swing: a cubic over five frames follows it to a small fraction of a mm.
         assert!(deviation_mm(&take, 0, 60).unwrap() < 0.01);
         assert_eq!(deviation_mm(&take, 0, 0), None);
+        assert_eq!(deviation_mm(&take, 0, 599), None);
+        assert_eq!(deviation_mm(&take, 0, 5000), None);
+        assert!(deviation_mm(&take, 0, 598).is_some());
         let p = take.position_mm(300, 0).unwrap();
         take.set_position_mm(300, 0, Some(p + Vec3::new(3.0, 4.0, 0.0))).unwrap();
         assert!((deviation_mm(&take, 0, 300).unwrap() - 5.0).abs() < 0.05);
