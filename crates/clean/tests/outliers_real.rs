@@ -85,3 +85,49 @@ fn swapped_labels_in_real_takes_are_found_and_undone() {
     swaps::unswap(&mut swapped, &found);
     assert_eq!(swapped, truth);
 }
+
+/// splitmix64, so the injected spikes are the same on every run.
+fn next(state: &mut u64) -> u64 {
+    *state = state.wrapping_add(0x9E37_79B9_7F4A_7C15);
+    let mut z = *state;
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^ (z >> 31)
+}
+
+#[test]
+fn clean_takes_are_left_alone_and_random_spikes_are_found() {
+    // 85_12 (120 Hz, 4499 frames) flagged nothing after the rule of issue 15; HDM05 keeps one
+    // stuck-marker window. 40 single-sample spikes of 10-50 mm in random directions, on random
+    // markers and frames.
+    for (rel, allowed) in [("cmu-c3d/85_12.c3d", 1), ("hdm05-c3d/HDM_bd_05-01_01_120.c3d", 1)] {
+        let Some(truth) = read(rel) else { return };
+        let config = OutlierConfig::default();
+        let found = outliers::detect(&truth, &config);
+        assert!(found.len() <= allowed, "{rel}: {} windows on a clean take: {found:?}", found.len());
+        let labeled: Vec<usize> = (0..truth.marker_count()).filter(|m| !truth.markers()[*m].is_unlabeled()).collect();
+        let mut state = 15;
+        let mut unit = || (next(&mut state) >> 11) as f64 / (1u64 << 53) as f64;
+        let mut corrupted = truth.clone();
+        let mut injected: Vec<(usize, usize)> = Vec::new();
+        while injected.len() < 40 {
+            let marker = labeled[(unit() * labeled.len() as f64) as usize];
+            let frame = 5 + (unit() * (truth.frame_count() - 10) as f64) as usize;
+            if injected.iter().any(|(m, f)| *m == marker && f.abs_diff(frame) < 10) {
+                continue;
+            }
+            let v = Vec3::new(unit() - 0.5, unit() - 0.5, unit() - 0.5);
+            if v.norm() < 0.05 {
+                continue;
+            }
+            let p = corrupted.position_mm(frame, marker).unwrap();
+            corrupted.set_position_mm(frame, marker, Some(p + v.normalize() * (10.0 + 40.0 * unit()))).unwrap();
+            injected.push((marker, frame));
+        }
+        let hits = outliers::detect(&corrupted, &config);
+        let recalled = injected.iter().filter(|(m, f)| hits.iter().any(|o| o.marker == *m && o.frames.contains(f)));
+        let recall = recalled.count() as f64 / injected.len() as f64;
+        assert!(recall >= 0.9, "{rel}: recall {recall}");
+        assert!(hits.len() <= injected.len() + allowed, "{rel}: {} windows for {} spikes", hits.len(), injected.len());
+    }
+}
