@@ -67,7 +67,8 @@
 //!   covariance gains from more poses, EDM's ranking and the interpolations do not.
 //! - Every constant of [`AutoConfig::default`] and [`default_ranking`] was chosen on one take,
 //!   CMU 85_12, with protocol seeds other than the one reported; the other shared takes (CMU
-//!   85_02, 135_02, HDM05) are held out (`examples/auto_fill.rs`, `tests/auto_real.rs`).
+//!   85_02, 135_02, HDM05) are held out (`locap bench fill --lengths`; the tuning example `crates/eval/examples/auto_fill.rs`,
+//!   the test `crates/eval/tests/auto_real.rs`).
 //! - Unlabeled points (`*N`) are not filled, as in [`crate::fill_gaps`].
 
 use crate::neighbours::{self, Selection};
@@ -478,7 +479,9 @@ impl Context<'_> {
             r.clone().all(|f| take.is_valid(f, marker))
                 && checked.iter().all(|j| r.clone().all(|f| take.is_valid(f, *j)))
         };
-        let step = 2 * len + 2;
+        // Windows as near as the gap itself allows (one frame apart, beyond its borders): on a
+        // short take the farther ones do not exist, and the nearest motion is the likest.
+        let step = len + 2;
         let mut offsets: Vec<isize> = Vec::new();
         for k in 1..=self.search.div_ceil(step).min(4000) {
             let jitter = (splitmix(self.config.seed ^ ((marker as u64) << 40) ^ ((gap.start as u64) << 8) ^ k as u64)

@@ -39,11 +39,13 @@ impl Variant {
     }
 
     /// Every method with default neighbours, plus EDM with nearest-distance neighbours (the
-    /// paper chose variance; this measures that choice).
+    /// paper chose variance; this measures that choice), plus the per-gap choice among them
+    /// ([`FillMethod::Auto`]), first.
     pub fn all() -> Vec<Variant> {
         let mut v: Vec<Variant> =
             FillMethod::ALL.iter().map(|m| Variant { method: *m, selection: Selection::Variance }).collect();
         v.insert(1, Variant { method: FillMethod::Edm, selection: Selection::MeanDistance });
+        v.insert(0, Variant { method: FillMethod::Auto, selection: Selection::Variance });
         v
     }
 }

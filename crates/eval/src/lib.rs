@@ -8,6 +8,10 @@
 //! overlap), and [`fill_bench`] fills them with every method on *the same* gaps, then scores
 //! exactly the hidden samples.
 //!
+//! [`fill_lengths`] is the fixed-length protocol of the published gap fillers: gaps of set
+//! lengths (0.1 / 0.5 / 1 / 2 s), one per input and all at once with a whole limb hidden
+//! together, RMSE over the hidden samples per length.
+//!
 //! # Solver metrics
 //! [`solver`] scores motion solvers on held-out synthetic shards as section 4.2 of the paper
 //! does (JOE, JPE and the cleaning's OMPE, Table 1), and compares solved motions with a
@@ -23,6 +27,7 @@
 //! and draws the charts from the data series the reports give.
 
 pub mod fill_bench;
+pub mod fill_lengths;
 /// Moved to `locap-synth` (the training-data augmentation and the benchmark share one gap
 /// model); re-exported so `locap_eval::gap_model` keeps working.
 pub use locap_synth::gap_model;

@@ -7,6 +7,7 @@ use clap::{Parser, Subcommand, ValueEnum};
 use locap_clean::{FillError, Filled, Filler};
 use locap_core::Take;
 use locap_eval::fill_bench::{self, Candidate, Variant};
+use locap_eval::fill_lengths;
 use locap_eval::gap_model::GapModel;
 use locap_eval::label_bench::{self, GhostCount, LabelBenchConfig};
 use locap_eval::unlabel::GhostMode;
@@ -118,7 +119,8 @@ pub fn parse_ghosts(text: &str) -> Result<GhostCount, String> {
 #[derive(Parser, Debug)]
 #[command(
     after_help = "Example:\n  locap bench fill ../shared/data/cmu-c3d/*.c3d ../shared/data/hdm05-c3d/*.c3d \\\n    \
-                        --gap-source ../shared/data/numediart-c3d/03_rolling.c3d --json fill.json"
+                        --gap-source ../shared/data/numediart-c3d/03_rolling.c3d --json fill.json\n  \
+                        locap bench fill ../shared/data/cmu-c3d/85_12.c3d --lengths 0.1,0.5,1,2 --per-length 5"
 )]
 pub struct FillArgs {
     /// Takes with ground truth (gap-free, or nearly: only captured samples are hidden).
@@ -138,9 +140,19 @@ pub struct FillArgs {
     /// Missing fraction per marker with `--gaps uniform`.
     #[arg(value_parser = crate::values::fraction, long, default_value_t = 0.1)]
     uniform_fraction: f64,
-    /// Seed of the gap sampler (same seed, same gaps).
-    #[arg(long, default_value_t = 1)]
-    seed: u64,
+    /// Seed of the gap sampler (same seed, same gaps). Default: 1 for real-statistics and
+    /// uniform gaps, 0 for `--lengths`.
+    #[arg(long)]
+    seed: Option<u64>,
+    /// The fixed-length protocol instead of gaps from occlusion statistics: gaps of these
+    /// lengths (seconds, comma-separated, e.g. `0.1,0.5,1,2`), `--per-length` of each, filled
+    /// one per input ("single") and all at once with three neighbouring markers of one limb
+    /// hidden together for 1 s ("multi"); RMSE mm over the hidden samples per length.
+    #[arg(long, value_delimiter = ',', value_name = "SECONDS", value_parser = crate::values::positive)]
+    lengths: Vec<f64>,
+    /// Gaps of each length with `--lengths`.
+    #[arg(value_parser = crate::values::count(1, 10_000), long, default_value_t = 5, value_name = "N", requires = "lengths")]
+    per_length: usize,
     /// Neighbours used by EDM.
     #[arg(value_parser = crate::values::count(1, crate::values::max(locap_nn::limits::MAX_NEIGHBOURS)), long, default_value_t = 6)]
     neighbours: usize,
@@ -238,6 +250,12 @@ fn publish(table: &str, report: &impl serde::Serialize, json: Option<&std::path:
 
 fn fill(args: FillArgs) -> Result<ExitCode> {
     let takes = read_takes(&args.takes, args.json.as_deref())?;
+    if takes.is_empty() {
+        bail!("no takes");
+    }
+    if !args.lengths.is_empty() {
+        return fill_lengths(&args, &takes);
+    }
     let mut model = match args.gaps {
         Gaps::Uniform => GapModel::uniform(args.uniform_fraction, args.max_gap),
         Gaps::Real => {
@@ -275,9 +293,41 @@ fn fill(args: FillArgs) -> Result<ExitCode> {
         }
     };
     model.max_gap_frames = args.max_gap.min(model.length_histogram.len().saturating_sub(1)).max(1);
-    if takes.is_empty() {
-        bail!("no takes");
-    }
+    with_candidates(&args, &takes, |methods| {
+        eprintln!("filling hidden gaps in {} takes with {} methods...", takes.len(), methods.len());
+        let report = fill_bench::run_candidates(&takes, &model, methods, args.seed.unwrap_or(1));
+        publish(&report.table(), &report, args.json.as_deref())
+    })
+}
+
+/// `bench fill --lengths`: the fixed-length protocol ([`locap_eval::fill_lengths`]).
+fn fill_lengths(args: &FillArgs, takes: &[(String, Take)]) -> Result<ExitCode> {
+    let config = fill_lengths::LengthsConfig {
+        lengths_s: args.lengths.clone(),
+        per_length: args.per_length,
+        seed: args.seed.unwrap_or(0),
+        limb: true,
+    };
+    with_candidates(args, takes, |methods| {
+        eprintln!(
+            "filling {} gaps of each of {} lengths in {} takes, one at a time and all at once, with {} methods...",
+            config.per_length,
+            config.lengths_s.len(),
+            takes.len(),
+            methods.len()
+        );
+        let report = fill_lengths::run_lengths(takes, methods, &config);
+        publish(&report.table(), &report, args.json.as_deref())
+    })
+}
+
+/// Calls `run` with every fill method under test: locap's methods, the refiners of `--model`
+/// and the shipped refiners (unless `--no-neural`) where some take carries their markers.
+fn with_candidates(
+    args: &FillArgs,
+    takes: &[(String, Take)],
+    run: impl FnOnce(&[Candidate]) -> Result<ExitCode>,
+) -> Result<ExitCode> {
     let mut refiners = Vec::new();
     for path in &args.model {
         inputs::protect(&[path])?;
@@ -302,9 +352,7 @@ fn fill(args: FillArgs) -> Result<ExitCode> {
     if takes.iter().any(|(_, take)| shipped.iter().any(|r| r.fits(take))) {
         methods.push(Candidate { name: "neural", filler: &fitting });
     }
-    eprintln!("filling hidden gaps in {} takes with {} methods...", takes.len(), methods.len());
-    let report = fill_bench::run_candidates(&takes, &model, &methods, args.seed);
-    publish(&report.table(), &report, args.json.as_deref())
+    run(&methods)
 }
 
 /// The shipped refiners that carry a take's markers, refined together (scored as `neural`).
