@@ -25,9 +25,12 @@ fn vec3(v: &Value) -> Vec3 {
     Vec3::new(a[0], a[1], a[2])
 }
 
-fn blender(file: &Path) -> Option<Value> {
+fn blender(file: &Path, render: Option<&Path>) -> Option<Value> {
     let mut command = tool(Tool::Blender)?;
     command.arg(script("blender_import.py")).arg(file).arg("100");
+    if let Some(png) = render {
+        command.arg(png);
+    }
     Some(serde_json::from_str(&run_json(command)).unwrap())
 }
 
@@ -55,7 +58,13 @@ fn solved_motion_stands_up_and_faces_forward_in_blender() {
     let markers = locap_io::c3d::read_path(&clean).unwrap().to_take().unwrap();
     let marker = |frame: usize, label: &str| markers.position_mm(frame, markers.marker_index(label).unwrap()).unwrap();
 
-    let Some(reference) = blender(&bvh) else { return };
+    // LOCAP_KEEP_RENDER=docs/guide/blender-solved.png keeps a render of the BVH in Blender
+    // (the guide's picture).
+    let render = std::env::var_os("LOCAP_KEEP_RENDER").map(|p| repo().join(p));
+    let Some(reference) = blender(&bvh, render.as_deref()) else { return };
+    if let Some(png) = &render {
+        assert!(std::fs::metadata(png).is_ok_and(|m| m.len() > 10_000), "{} not rendered", png.display());
+    }
     let check_counts = |report: &Value, name: &str| {
         assert_eq!(report["bones"], 31, "{name}: {report}");
         assert_eq!(report["end"].as_i64().unwrap() - report["start"].as_i64().unwrap() + 1, 1200, "{name}: {report}");
@@ -85,7 +94,7 @@ fn solved_motion_stands_up_and_faces_forward_in_blender() {
     eprintln!("BVH in Blender: facing within {worst_deg:.1} degrees of the pelvis markers' direction");
 
     for (path, name) in [(&glb, "glTF"), (&fbx, "FBX")] {
-        let Some(report) = blender(path) else { return };
+        let Some(report) = blender(path, None) else { return };
         check_counts(&report, name);
         let mut worst_m: f64 = 0.0;
         for (f, r) in report["frames"].as_array().unwrap().iter().zip(frames) {
@@ -108,7 +117,13 @@ fn mot_and_y_up_trc_read_in_opensim() {
     let take = repo().join("examples/cmu_01_01_last10s.c3d");
     let (mot, clean, trc) = (dir.path().join("x.mot"), dir.path().join("clean.c3d"), dir.path().join("clean.trc"));
     solve(&take, &mot, &["--markers-out", clean.to_str().unwrap()]);
-    let out = locap().arg("convert").arg(&clean).arg(&trc).args(["--up", "y", "--trc-unit", "m"]).output().unwrap();
+    let out = locap()
+        .arg("convert")
+        .arg(&clean)
+        .arg(&trc)
+        .args(["--up", "y", "--trc-unit", "m", "--trc-missing", "nan"])
+        .output()
+        .unwrap();
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let markers = locap_io::c3d::read_path(&clean).unwrap().to_take().unwrap();
     let Some(mut opensim) = tool(Tool::OpenSim) else { return };

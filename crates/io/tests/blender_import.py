@@ -4,6 +4,8 @@ frame the world positions (metres, Blender's Z-up) of the root, head, feet and h
 
 Usage: python blender_import.py FILE.(bvh|gltf|glb|fbx) STEP [RENDER.png]
 
+With RENDER.png it also renders the character at the first frame (Workbench, headless).
+
 BVH is imported with scale 0.01 (locap solve writes centimetres) and Blender's defaults for
 the axes (BVH Y-up, -Z forward); glTF and FBX with the importers' defaults, the scene's frame
 rate set from the file where the format records it (FBX) and to the BVH's otherwise (glTF has
@@ -81,23 +83,37 @@ def main():
 
 
 def render_still(scene, arm, path):
-    """A small Workbench render of the armature at frame 1, seen from the front-left."""
+    """A small Workbench render of the character at frame 1: each bone a tube, each joint a
+    ball, over a floor at Z = 0, seen from the front-right."""
     import mathutils
 
-    scene.frame_set(1)
-    arm.data.display_type = "STICK"
-    arm.show_in_front = True
+    scene.frame_set(scene.frame_start)
+    material = bpy.data.materials.new("bone")
+    material.diffuse_color = (0.85, 0.3, 0.7, 1.0)
+    for bone in arm.pose.bones:
+        head, tail = arm.matrix_world @ bone.head, arm.matrix_world @ bone.tail
+        along = tail - head
+        if along.length < 1e-4:
+            continue
+        bpy.ops.mesh.primitive_cylinder_add(radius=0.02, depth=along.length, location=(head + tail) / 2)
+        tube = bpy.context.object
+        tube.rotation_euler = along.to_track_quat("Z", "Y").to_euler()
+        tube.data.materials.append(material)
+        bpy.ops.mesh.primitive_uv_sphere_add(radius=0.03, location=head)
+        bpy.context.object.data.materials.append(material)
     centre = arm.matrix_world @ arm.pose.bones[0].head
-    cam_data = bpy.data.cameras.new("camera")
-    cam = bpy.data.objects.new("camera", cam_data)
-    scene.collection.objects.link(cam)
-    cam.location = centre + mathutils.Vector((3.0, -4.0, 0.6))
-    cam.rotation_euler = (centre - cam.location).to_track_quat("-Z", "Y").to_euler()
-    scene.camera = cam
+    bpy.ops.mesh.primitive_plane_add(size=6, location=(centre.x, centre.y, 0.0))
+    camera = bpy.data.objects.new("camera", bpy.data.cameras.new("camera"))
+    scene.collection.objects.link(camera)
+    camera.location = centre + mathutils.Vector((2.5, -3.5, 0.5))
+    camera.rotation_euler = (centre - camera.location).to_track_quat("-Z", "Y").to_euler()
+    scene.camera = camera
     scene.render.engine = "BLENDER_WORKBENCH"
-    scene.render.resolution_x, scene.render.resolution_y = 480, 480
+    scene.display.shading.light = "STUDIO"
+    scene.display.shading.color_type = "MATERIAL"
+    scene.render.resolution_x, scene.render.resolution_y = 400, 400
     scene.render.filepath = path
-    bpy.ops.render.opengl(write_still=True)
+    bpy.ops.render.render(write_still=True)
 
 
 main()

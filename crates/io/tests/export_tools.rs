@@ -15,18 +15,27 @@ fn script(name: &str) -> std::path::PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("tests").join(name)
 }
 
+/// CMU 131_01 (read as centimetres) written as each of `names` in a new folder.
+fn written(names: &[&str]) -> Option<(locap_core::Motion, tempfile::TempDir, Vec<std::path::PathBuf>)> {
+    let path = locap_testkit::shared_file("cmu-bvh/131_01.bvh")?;
+    let motion = locap_io::bvh::read_bvh_path(&path, LengthUnit::Centimetre).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let outs: Vec<_> = names.iter().map(|n| dir.path().join(n)).collect();
+    for out in &outs {
+        write_motion_path(&motion, &MotionOutput::default(), out).unwrap();
+    }
+    Some((motion, dir, outs))
+}
+
 /// CMU 131_01 (31 joints, 994 frames at 120 Hz) as glTF and GLB: no validator error or
 /// warning, and the animation is there.
 #[test]
 fn gltf_of_a_real_take_passes_the_khronos_validator() {
-    let Some(path) = locap_testkit::shared_file("cmu-bvh/131_01.bvh") else { return };
-    let motion = locap_io::bvh::read_bvh_path(&path, LengthUnit::Centimetre).unwrap();
-    let dir = tempfile::tempdir().unwrap();
-    for name in ["131_01.gltf", "131_01.glb"] {
-        let out = dir.path().join(name);
-        write_motion_path(&motion, &MotionOutput::default(), &out).unwrap();
+    let Some((_, _dir, outs)) = written(&["131_01.gltf", "131_01.glb"]) else { return };
+    for out in &outs {
+        let name = out.display();
         let Some(mut node) = tool(Tool::GltfValidator) else { return };
-        node.arg(script("gltf_validate.js")).arg(&out);
+        node.arg(script("gltf_validate.js")).arg(out);
         let report: Value = serde_json::from_str(&run_json(node)).unwrap();
         eprintln!("{name}: {report}");
         assert_eq!(report["errors"], 0, "{report}");
@@ -39,14 +48,11 @@ fn gltf_of_a_real_take_passes_the_khronos_validator() {
 /// root where the BVH puts it (metres, glTF and FBX both Y-up, so Blender turns both alike).
 #[test]
 fn gltf_and_fbx_of_a_real_take_import_in_blender() {
-    let Some(path) = locap_testkit::shared_file("cmu-bvh/131_01.bvh") else { return };
-    let motion = locap_io::bvh::read_bvh_path(&path, LengthUnit::Centimetre).unwrap();
-    let dir = tempfile::tempdir().unwrap();
-    for name in ["131_01.glb", "131_01.fbx"] {
-        let out = dir.path().join(name);
-        write_motion_path(&motion, &MotionOutput::default(), &out).unwrap();
+    let Some((motion, _dir, outs)) = written(&["131_01.glb", "131_01.fbx"]) else { return };
+    for out in &outs {
+        let name = out.display();
         let Some(mut blender) = tool(Tool::Blender) else { return };
-        blender.arg(script("blender_import.py")).arg(&out).arg("100");
+        blender.arg(script("blender_import.py")).arg(out).arg("100");
         let report: Value = serde_json::from_str(&run_json(blender)).unwrap();
         assert_eq!(report["bones"], 31, "{name}: {report}");
         assert_eq!(report["end"].as_i64().unwrap() - report["start"].as_i64().unwrap() + 1, 994, "{name}: {report}");
@@ -65,11 +71,8 @@ fn gltf_and_fbx_of_a_real_take_import_in_blender() {
 /// `.mot` of the take read by OpenSim's Storage and TimeSeriesTable.
 #[test]
 fn mot_of_a_real_take_reads_in_opensim() {
-    let Some(path) = locap_testkit::shared_file("cmu-bvh/131_01.bvh") else { return };
-    let motion = locap_io::bvh::read_bvh_path(&path, LengthUnit::Centimetre).unwrap();
-    let dir = tempfile::tempdir().unwrap();
-    let mot = dir.path().join("131_01.mot");
-    write_motion_path(&motion, &MotionOutput::default(), &mot).unwrap();
+    let Some((motion, dir, outs)) = written(&["131_01.mot"]) else { return };
+    let mot = &outs[0];
     let Some(mut opensim) = tool(Tool::OpenSim) else { return };
     // OpenSim writes opensim.log into its working folder.
     opensim
@@ -80,7 +83,7 @@ fn mot_of_a_real_take_reads_in_opensim() {
              print(json.dumps({'rows': t.getNumRows(), 'columns': t.getNumColumns(), 'storage': s.getSize(), \
              'degrees': s.isInDegrees(), 'first': list(t.getColumnLabels())[0], 'ty': t.getDependentColumn('Hips_ty')[0]}))",
         )
-        .arg(&mot);
+        .arg(mot);
     let report: Value = serde_json::from_str(&run_json(opensim)).unwrap();
     assert_eq!(report["rows"], 994, "{report}");
     assert_eq!(report["storage"], 994, "{report}");

@@ -9,6 +9,7 @@ TimeSeriesTableVec3 (the TRCFileAdapter), as OpenSim's marker-based tools read i
 """
 
 import json
+import math
 import sys
 
 import opensim
@@ -22,10 +23,10 @@ def main():
     times = list(table.getIndependentColumn())
     first_row = [table.getRowAtIndex(0)[i] for i in range(table.getNumColumns())]
     markers = opensim.TimeSeriesTableVec3(trc)
-    meta = markers.getTableMetaData()
     row = markers.getRowAtIndex(0)
+    # A missing sample reads as NaN, which JSON cannot hold: null instead.
     positions = {
-        name: [row[i][0], row[i][1], row[i][2]]
+        name: [v if math.isfinite(v) else None for v in (row[i][0], row[i][1], row[i][2])]
         for i, name in enumerate(markers.getColumnLabels())
     }
     print(
@@ -44,8 +45,8 @@ def main():
                 "trc": {
                     "rows": markers.getNumRows(),
                     "markers": markers.getNumColumns(),
-                    "units": meta.getValueForKey("Units").getValue(),
-                    "rate": float(meta.getValueForKey("DataRate").getValue()),
+                    "units": markers.getTableMetaDataAsString("Units"),
+                    "rate": float(markers.getTableMetaDataAsString("DataRate")),
                     "first_frame": positions,
                 },
             }

@@ -16,7 +16,7 @@ use std::process::ExitCode;
 /// Arguments of `locap convert`.
 #[derive(Parser, Debug)]
 #[command(
-    after_help = "Examples:\n  locap convert take.c3d take.trc\n  locap convert take.c3d opensim.trc --up y --trc-unit m\n  \
+    after_help = "Examples:\n  locap convert take.c3d take.trc\n  locap convert take.c3d opensim.trc --up y --trc-unit m --trc-missing nan\n  \
                         locap convert take.c3d cut.c3d --frames 0..1200\n  \
                         locap convert 01_01.amc 01_01.bvh --asf 01.asf\n  locap convert solved.bvh solved.glb\n  \
                         locap convert takes/ out/ --to trc\n\n\
@@ -53,9 +53,22 @@ pub struct Args {
     /// cm, Blender imports 1 unit as 1 m, so use m or import cm with scale 0.01).
     #[arg(long, default_value = "cm", value_parser = parse_unit, value_name = "UNIT", help_heading = "Input")]
     bvh_unit: LengthUnit,
+    /// How TRC files write a missing sample: `empty` fields (Motion Analysis) or `nan`
+    /// (OpenSim 4.6 refuses rows that end in empty fields).
+    #[arg(long, value_enum, default_value_t = TrcMissing::Empty, value_name = "AS", help_heading = "Output")]
+    trc_missing: TrcMissing,
     /// Length unit of TRC files written.
     #[arg(long, default_value = "mm", value_parser = parse_unit, value_name = "UNIT", help_heading = "Output")]
     trc_unit: LengthUnit,
+}
+
+/// `--trc-missing` on the command line.
+#[derive(Debug, Clone, Copy, clap::ValueEnum)]
+enum TrcMissing {
+    /// Three empty fields.
+    Empty,
+    /// `NaN` three times.
+    Nan,
 }
 
 fn parse_range(text: &str) -> Result<std::ops::Range<usize>, String> {
@@ -181,7 +194,13 @@ fn write_markers(take: &Take, output: &Path, args: &Args) -> Result<()> {
     };
     match extension(output).as_str() {
         "c3d" => c3d::write_path(&c3d::C3dFile::from_take(take)?, output)?,
-        "trc" => trc::write_trc_path(take, args.trc_unit, output)?,
+        "trc" => {
+            let missing = match args.trc_missing {
+                TrcMissing::Empty => trc::Missing::Empty,
+                TrcMissing::Nan => trc::Missing::NaN,
+            };
+            trc::write_trc_path_with(take, args.trc_unit, missing, output)?
+        }
         "csv" => csv::write_csv_path(take, output)?,
         ext if export::MOTION_EXTENSIONS.contains(&ext) => bail!(
             "{}: markers cannot be written as {}: that needs a skeleton solver (locap solve)",
