@@ -1,8 +1,10 @@
 //! FBX (binary, version 7.4): a solved motion as a skeleton with animation curves, for
 //! Unreal, Unity, MotionBuilder, Maya and Blender.
 //!
-//! No well-kept Rust FBX writer exists (the crates.io FBX crates read, or are abandoned), so
-//! this one is written from the format's public documentation: Autodesk's FBX SDK reference
+//! No well-kept Rust FBX writer exists (looked up on docs.rs: `fbx_direct` is an unmaintained
+//! low-level event writer, `fbxcel`'s writer encodes the node container but knows no scene,
+//! skeleton or animation; the others read), so this one is written from the format's public
+//! documentation: Autodesk's FBX SDK reference
 //! for the scene model (`FbxNode`, `FbxSkeleton`, `FbxAnimStack`, `FbxAnimLayer`,
 //! `FbxAnimCurveNode`, `FbxAnimCurve`, `FbxGlobalSettings`) and the Blender Foundation's
 //! description of the binary container ("FBX binary file format specification", Blender

@@ -102,9 +102,21 @@ impl Builder {
         width: usize,
         bounds: bool,
     ) -> json::Index<json::Accessor> {
+        self.floats_for(values, kind, width, bounds, None)
+    }
+
+    /// [`Builder::floats`] in a buffer view with a GPU `target` (vertex attributes).
+    fn floats_for(
+        &mut self,
+        values: &[f32],
+        kind: json::accessor::Type,
+        width: usize,
+        bounds: bool,
+        target: Option<json::buffer::Target>,
+    ) -> json::Index<json::Accessor> {
         let bytes: Vec<u8> = values.iter().flat_map(|v| v.to_le_bytes()).collect();
         let min_max = bounds.then(|| bounds_of(values, width));
-        self.accessor(&bytes, values.len() / width, json::accessor::ComponentType::F32, kind, min_max, None)
+        self.accessor(&bytes, values.len() / width, json::accessor::ComponentType::F32, kind, min_max, target)
     }
 }
 
@@ -212,12 +224,19 @@ fn build(motion: &Motion, content: GltfContent<'_>) -> Result<(json::Root, Vec<u
         skeleton: Some(json::Index::new(0)),
     });
     let positions: Vec<f32> = rest_global_m.iter().flatten().copied().collect();
-    let positions = b.floats(&positions, json::accessor::Type::Vec3, 3, true);
+    let vertex = Some(json::buffer::Target::ArrayBuffer);
+    let positions = b.floats_for(&positions, json::accessor::Type::Vec3, 3, true, vertex);
     let influences: Vec<u8> = (0..kept.len() as u16).flat_map(|n| [n, 0, 0, 0]).flat_map(u16::to_le_bytes).collect();
-    let influences =
-        b.accessor(&influences, kept.len(), json::accessor::ComponentType::U16, json::accessor::Type::Vec4, None, None);
+    let influences = b.accessor(
+        &influences,
+        kept.len(),
+        json::accessor::ComponentType::U16,
+        json::accessor::Type::Vec4,
+        None,
+        vertex,
+    );
     let weights: Vec<f32> = (0..kept.len()).flat_map(|_| [1.0, 0.0, 0.0, 0.0]).collect();
-    let weights = b.floats(&weights, json::accessor::Type::Vec4, 4, false);
+    let weights = b.floats_for(&weights, json::accessor::Type::Vec4, 4, false, vertex);
     let mut lines: Vec<u32> = Vec::new();
     for (n, &j) in kept.iter().enumerate() {
         if let Some(p) = joints[j].parent.and_then(|p| node_of[p]) {

@@ -18,6 +18,7 @@ validator
         errors: issues.numErrors,
         warnings: issues.numWarnings,
         infos: issues.numInfos,
+        hints: issues.numHints,
         messages: issues.messages.map((m) => `${m.severity} ${m.code} ${m.pointer || ""}: ${m.message}`),
         animations: report.info ? report.info.animationCount : null,
         nodes: report.info ? report.info.nodeCount : null,
