@@ -254,12 +254,12 @@ fn absurd_option_values_are_usage_errors() {
         let option = args.iter().rev().find(|a| a.starts_with("--")).unwrap().split('=').next().unwrap();
         assert!(stderr(&out).contains(option), "{}: the message names {option}: {}", args.join(" "), stderr(&out));
     }
-    // A solved motion goes to BVH only: `-o x.glb` is refused, not silently a BVH.
+    // A solved motion goes to a motion format only: `-o x.c3d` is refused, not silently a BVH.
     let dir = tempfile::tempdir().unwrap();
-    let glb = dir.path().join("x.glb");
-    let out = locap().args(["solve", take, "-o"]).arg(&glb).output().unwrap();
+    let c3d = dir.path().join("x.c3d");
+    let out = locap().args(["solve", take, "-o"]).arg(&c3d).output().unwrap();
     assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
-    assert!(!glb.exists());
+    assert!(!c3d.exists());
 }
 
 /// SIGTERM in the middle of writing a large output: the program exits, and neither the output

@@ -198,6 +198,21 @@ impl Motion {
         self.root_position_mm[frame]
     }
 
+    /// The same motion seen in a world turned by `world` (e.g. from one axis convention to
+    /// another): the root's rotation and position are turned, every other joint keeps its
+    /// local rotation, so every global joint position `p` becomes `world * p`.
+    pub fn rotated(&self, world: Quat) -> Motion {
+        let joints = self.skeleton.len();
+        let mut rotations = self.rotations.clone();
+        for frame in rotations.chunks_mut(joints.max(1)) {
+            if let Some(root) = frame.first_mut() {
+                *root = world * *root;
+            }
+        }
+        let root_position_mm = self.root_position_mm.iter().map(|p| world * p).collect();
+        Motion { skeleton: self.skeleton.clone(), rotations, root_position_mm, frame_rate_hz: self.frame_rate_hz }
+    }
+
     /// Global joint positions and rotations at `frame`.
     pub fn forward_kinematics(&self, frame: usize) -> GlobalPose {
         forward_kinematics(&self.skeleton, self.local_rotations(frame), self.root_position_mm[frame])
@@ -289,6 +304,19 @@ mod tests {
         let m = Motion::new(sk, vec![Quat::identity(); 8], vec![Vec3::zeros(); 2], 120.0).unwrap();
         assert_eq!(m.frame_count(), 2);
         assert_eq!(m.forward_kinematics(1).positions_mm.len(), 4);
+    }
+
+    #[test]
+    fn a_rotated_motion_turns_every_joint() {
+        let sk = arm();
+        let z90 = EulerOrder::ZXY.to_quat_deg([90.0, 0.0, 0.0]);
+        let local = vec![z90, Quat::identity(), z90, Quat::identity()];
+        let m = Motion::new(sk, local, vec![Vec3::new(10.0, 20.0, 30.0)], 100.0).unwrap();
+        let world = EulerOrder::XYZ.to_quat_deg([-90.0, 0.0, 0.0]);
+        let (a, b) = (m.forward_kinematics(0), m.rotated(world).forward_kinematics(0));
+        for (p, q) in a.positions_mm.iter().zip(&b.positions_mm) {
+            assert_relative_eq!(world * p, *q, epsilon = 1e-9);
+        }
     }
 
     proptest! {

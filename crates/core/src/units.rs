@@ -97,6 +97,31 @@ pub fn y_up_to_z_up_rotation() -> Quat {
     Quat::from_rotation_matrix(&nalgebra::Rotation3::from_matrix_unchecked(m))
 }
 
+/// The Y-up frame of animation and biomechanics tools (Blender's and MotionBuilder's BVH
+/// import, glTF 2.0 section 3.4 "Coordinate System and Units", FBX with `UpAxis` 1, OpenSim):
+/// a Z-up lab point `(x, y, z)` is the Y-up point `(x, z, -y)`, a rotation of -90 degrees
+/// about X.
+///
+/// It differs from the lab convention of [`z_up_to_y_up`] on purpose: that cyclic swap is how
+/// CMU's skeletons sit in their labs; this one is what the tools undo when they import Y-up
+/// data into a Z-up scene (Blender maps Y-up `(x, y, z)` to its `(x, -z, y)`), so a motion
+/// written in it lands in the tool exactly where its markers were in the lab, upright and
+/// facing the way the markers face.
+pub fn z_up_to_tools_y_up(p: Vec3) -> Vec3 {
+    Vec3::new(p.x, p.z, -p.y)
+}
+
+/// The inverse of [`z_up_to_tools_y_up`]: a tools' Y-up point `(x, y, z)` is the Z-up lab
+/// point `(x, -z, y)`.
+pub fn tools_y_up_to_z_up(p: Vec3) -> Vec3 {
+    Vec3::new(p.x, -p.z, p.y)
+}
+
+/// [`z_up_to_tools_y_up`] as a rotation (for poses and orientations).
+pub fn z_up_to_tools_y_up_rotation() -> Quat {
+    Quat::from_axis_angle(&Vec3::x_axis(), -std::f64::consts::FRAC_PI_2)
+}
+
 impl UpAxis {
     /// A point of a frame whose vertical axis is `self` in Y-up axes ([`z_up_to_y_up`] for
     /// Z-up, unchanged for Y-up).
@@ -131,5 +156,16 @@ mod tests {
         assert!((y_up_to_z_up_rotation() * p - y_up_to_z_up(p)).norm() < 1e-12);
         assert_eq!(UpAxis::Z.to_y_up(Vec3::z()), Vec3::y());
         assert_eq!(UpAxis::Y.to_y_up(p), p);
+    }
+
+    #[test]
+    fn the_tools_convention_keeps_x_and_turns_z_up_into_y_up() {
+        let p = Vec3::new(1.0, 2.0, 3.0);
+        assert_eq!(z_up_to_tools_y_up(Vec3::z()), Vec3::y());
+        assert_eq!(z_up_to_tools_y_up(Vec3::x()), Vec3::x());
+        // The lab's +Y (often "forward" in a Z-up lab) becomes -Z, Blender's forward on import.
+        assert_eq!(z_up_to_tools_y_up(Vec3::y()), -Vec3::z());
+        assert_eq!(tools_y_up_to_z_up(z_up_to_tools_y_up(p)), p);
+        assert!((z_up_to_tools_y_up_rotation() * p - z_up_to_tools_y_up(p)).norm() < 1e-12);
     }
 }

@@ -12,6 +12,13 @@
 //! - [`asf_amc`]: Acclaim skeleton (ASF) and motion (AMC), as in the CMU database (read).
 //! - [`trc`]: OpenSim / Motion Analysis marker text files, in and out.
 //! - [`csv`]: a plain marker table for spreadsheets, written and read back (same layout).
+//! - [`gltf`]: glTF 2.0 (`.gltf`, `.glb`), a solved motion as a skinned, animated skeleton
+//!   (written).
+//! - [`fbx`]: binary FBX 7.4, a solved motion as a skeleton with animation curves (written).
+//! - [`mot`]: OpenSim motion tables of joint angles (written).
+//!
+//! [`export`] picks a motion writer by file extension; [`axes`] says which axes and units
+//! every writer uses and converts takes and motions into them.
 //!
 //! # Errors
 //! [`Error`] says where a file is broken: byte offset and section for binary files, line and
@@ -29,11 +36,16 @@
 
 pub mod asf_amc;
 pub mod atomic;
+pub mod axes;
 pub mod bvh;
 pub mod c3d;
 pub mod csv;
 mod error;
+pub mod export;
+pub mod fbx;
+pub mod gltf;
 pub mod limits;
+pub mod mot;
 pub mod trc;
 
 pub use error::{Error, Result};

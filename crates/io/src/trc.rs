@@ -43,8 +43,8 @@
 //!   cannot fail and keeps accented marker names.
 //!
 //! # Writing
-//! All columns of every row are written (empty fields for missing samples) so the file lines
-//! up in a spreadsheet. Coordinates get enough decimals for a resolution of 10⁻⁵ mm in any
+//! All columns of every row are written (empty fields for missing samples, or `NaN` with
+//! [`Missing::NaN`], which OpenSim needs) so the file lines up in a spreadsheet. Coordinates get enough decimals for a resolution of 10⁻⁵ mm in any
 //! unit (5 in mm, 8 in m): far below any capture system's noise, so a round trip loses
 //! nothing measurable. `Time` is `(Frame# - 1) / DataRate`, the Cortex / OpenSim convention.
 
@@ -318,17 +318,34 @@ pub fn read_trc_file_with(text: &str, limits: &Limits) -> Result<TrcFile> {
 
 /// Writes `take` as TRC text with coordinates in `unit`.
 pub fn write_trc(take: &Take, unit: LengthUnit, w: &mut dyn Write) -> Result<()> {
-    write_trc_named(take, unit, "locap.trc", w)
+    write_trc_named(take, unit, Missing::Empty, "locap.trc", w)
 }
 
 /// Writes `take` as a TRC file at `path`, atomically (see [`crate::atomic`]).
 pub fn write_trc_path(take: &Take, unit: LengthUnit, path: &Path) -> Result<()> {
-    // The PathFileType line conventionally carries the file's own name.
-    let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
-    write_atomically(path, |w| write_trc_named(take, unit, &name, w))
+    write_trc_path_with(take, unit, Missing::Empty, path)
 }
 
-fn write_trc_named(take: &Take, unit: LengthUnit, file_name: &str, w: &mut dyn Write) -> Result<()> {
+/// How a missing sample is written.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Missing {
+    /// Three empty fields, the Motion Analysis convention (and what this reader reads best).
+    #[default]
+    Empty,
+    /// `NaN` three times: OpenSim 4.6's TRC reader refuses a row that ends in empty fields
+    /// (it counts one column too few), so files for OpenSim need this when the last markers
+    /// can be missing.
+    NaN,
+}
+
+/// [`write_trc_path`] with missing samples written as `missing`.
+pub fn write_trc_path_with(take: &Take, unit: LengthUnit, missing: Missing, path: &Path) -> Result<()> {
+    // The PathFileType line conventionally carries the file's own name.
+    let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    write_atomically(path, |w| write_trc_named(take, unit, missing, &name, w))
+}
+
+fn write_trc_named(take: &Take, unit: LengthUnit, missing: Missing, file_name: &str, w: &mut dyn Write) -> Result<()> {
     let names: Vec<String> = take.markers().iter().map(MarkerName::full).collect();
     for (i, name) in names.iter().enumerate() {
         if name.is_empty() {
@@ -377,7 +394,10 @@ fn write_trc_named(take: &Take, unit: LengthUnit, file_name: &str, w: &mut dyn W
                     let p = p * scale;
                     line.push_str(&format!("\t{:.d$}\t{:.d$}\t{:.d$}", p.x, p.y, p.z, d = decimals));
                 }
-                None => line.push_str("\t\t\t"),
+                None => line.push_str(match missing {
+                    Missing::Empty => "\t\t\t",
+                    Missing::NaN => "\tNaN\tNaN\tNaN",
+                }),
             }
         }
         line.push('\n');
@@ -714,6 +734,18 @@ mod tests {
                 }
             }
         }
+    }
+
+    #[test]
+    fn missing_samples_as_nan_read_back_missing() {
+        let take = read_trc(SMALL).unwrap();
+        assert!(take.missing_count() > 0);
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("nan.trc");
+        write_trc_path_with(&take, LengthUnit::Metre, Missing::NaN, &path).unwrap();
+        let text = std::fs::read_to_string(&path).unwrap();
+        assert!(text.contains("\tNaN\tNaN\tNaN") && !text.lines().skip(6).any(|l| l.ends_with('\t')), "{text}");
+        assert_eq!(read_trc(&text).unwrap().validity(), take.validity());
     }
 
     #[test]

@@ -76,3 +76,70 @@ pub fn shared_file(relative: &str) -> Option<PathBuf> {
     assert!(path.exists(), "{} is not in the shared data", path.display());
     Some(path)
 }
+
+/// An external program the export tests read locap's files with, installed by `.ci/run`
+/// under `.ci/`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Tool {
+    /// Blender as a Python module (`bpy` from PyPI, Python 3.13), in `.ci/bpy-venv`.
+    Blender,
+    /// OpenSim 4.6 (`opensim` from PyPI, Python 3.11), in `.ci/opensim`.
+    OpenSim,
+    /// The Khronos glTF validator (`gltf-validator` from npm, run by node), in `.ci/node`.
+    GltfValidator,
+}
+
+/// A command that runs `tool`'s interpreter (python or node) with the tool importable; give it
+/// a script and arguments. `None` after printing that the check is skipped when the tool is
+/// not installed.
+///
+/// # Panics
+/// When the tool is missing and `CI` is set: CI installs every tool, so a missing one is a
+/// broken setup, not a skip.
+pub fn tool(tool: Tool) -> Option<std::process::Command> {
+    let ci = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../.ci");
+    let command = || {
+        let mut c = match tool {
+            Tool::Blender => std::process::Command::new(ci.join("bpy-venv/bin/python")),
+            Tool::OpenSim => {
+                let mut c = std::process::Command::new("python3");
+                c.env("PYTHONPATH", ci.join("opensim"));
+                c
+            }
+            Tool::GltfValidator => {
+                let mut c = std::process::Command::new("node");
+                c.env("NODE_PATH", ci.join("node/node_modules"));
+                c
+            }
+        };
+        c.stdin(std::process::Stdio::null());
+        c
+    };
+    let probe = match tool {
+        Tool::Blender => ["-c", "import bpy"],
+        Tool::OpenSim => ["-c", "import opensim"],
+        Tool::GltfValidator => ["-e", "require('gltf-validator')"],
+    };
+    let ok = command()
+        .args(probe)
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .status()
+        .is_ok_and(|s| s.success());
+    if ok {
+        return Some(command());
+    }
+    assert!(std::env::var_os("CI").is_none(), "CI must install {tool:?} under {} (see .ci/run)", ci.display());
+    eprintln!("skipping the {tool:?} check: not installed under {} (run .ci/run once to install it)", ci.display());
+    None
+}
+
+/// Runs `command` (from [`tool`]) and returns the last line it prints that opens a JSON
+/// object (the scripts' report; tools print progress before it), panicking with its output
+/// when it fails.
+pub fn run_json(mut command: std::process::Command) -> String {
+    let out = command.output().expect("the tool starts");
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{command:?} failed:\n{stdout}\n{}", String::from_utf8_lossy(&out.stderr));
+    stdout.lines().rev().find(|l| l.trim_start().starts_with('{')).unwrap_or_default().to_string()
+}

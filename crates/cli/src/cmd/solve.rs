@@ -2,8 +2,11 @@
 //! swapped labels and outliers repaired, gaps filled (EDM + the learned refiner: the shipped
 //! one when it fits the markers, or `--refiner`; EDM alone with `--no-refiner`), then the motion
 //! solver turns every frame into joint rotations and the root position, with bone lengths fitted to the subject (offsets averaged over the take). Writes
-//! BVH at the take's own frame rate with exactly its frame count, in the skeleton's Y-up motion
-//! frame (the lab frame the model was trained for is undone), lengths in centimetres.
+//! the motion at the take's own frame rate with exactly its frame count as BVH, glTF / GLB,
+//! FBX or OpenSim `.mot` (by the output's extension, `locap_io::export`), in the Y-up frame of
+//! the animation tools (`locap_io::axes`: a Z-up lab's `(x, y, z)` is `(x, z, -y)`), so
+//! Blender, MotionBuilder and OpenSim show the character upright where its markers were, facing
+//! the way they face. BVH lengths are in `--bvh-unit` (centimetres by default).
 //!
 //! Without `--model`, the solver shipped with locap is used (`locap_nn::shipped::solver`,
 //! `models/solver-cmu41.locapsv`: the CMU 41-marker set on the CMU ASF skeleton, built into the
@@ -15,23 +18,47 @@ use crate::inputs;
 use anyhow::{Context, Result};
 use clap::Parser;
 use locap_clean::{FillConfig, Filler};
-use locap_core::LengthUnit;
+use locap_core::{LengthUnit, Quat, UpAxis};
+use locap_io::{axes, export};
 use locap_nn::Refiner;
 use locap_nn::solver::Solver;
+use locap_synth::synthesize::LabFrame;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 /// Arguments of `locap solve`.
 #[derive(Parser, Debug)]
 #[command(after_help = "Examples:\n  locap solve ../shared/data/cmu-c3d/85_02.c3d -o out.bvh\n  \
-                        locap solve takes/ -o solved/ --markers-out cleaned/")]
+                        locap solve take.c3d -o take.glb --with-markers\n  \
+                        locap solve takes/ -o solved/ --to fbx --markers-out cleaned/\n\n\
+                  Axes and units: every motion is Y-up, a Z-up lab's (x, y, z) written as (x, z, -y)\n  \
+                  (Blender, MotionBuilder, Maya and OpenSim show it upright where the markers were).\n  \
+                  BVH: lengths in --bvh-unit (cm by default; Blender: import with scale 0.01), degrees\n  \
+                  glTF / GLB: metres, quaternions\n  \
+                  FBX: centimetres (UnitScaleFactor 1), degrees\n  \
+                  MOT: root translation in metres, joint angles in degrees\n  \
+                  --markers-out C3D: the input's axes (Z-up) unless --up y, millimetres")]
 pub struct Args {
     /// Labeled C3D or TRC takes, or folders searched recursively.
     #[arg(required = true, value_name = "FILE")]
     inputs: Vec<PathBuf>,
-    /// Output BVH file (one input) or folder (several inputs or a folder).
+    /// Output file (one input): .bvh, .gltf, .glb, .fbx or .mot; or a folder (several inputs or
+    /// a folder), with --to.
     #[arg(short, long, value_name = "PATH", help_heading = "Output")]
     output: PathBuf,
+    /// Format of the files written into an output folder.
+    #[arg(long, value_name = "EXT", default_value = "bvh", value_parser = ["bvh", "gltf", "glb", "fbx", "mot"], help_heading = "Output")]
+    to: String,
+    /// Length unit of BVH output (BVH cannot record it; MotionBuilder expects cm).
+    #[arg(long, default_value = "cm", value_parser = crate::cmd::convert::parse_unit, value_name = "UNIT", help_heading = "Output")]
+    bvh_unit: LengthUnit,
+    /// Add the cleaned markers to glTF / GLB output as animated nodes.
+    #[arg(long, help_heading = "Output")]
+    with_markers: bool,
+    /// Vertical axis of the --markers-out C3D: `y` turns a Z-up lab's (x, y, z) into (x, z, -y).
+    /// Default: the input's.
+    #[arg(long, value_enum, value_name = "AXIS", help_heading = "Output")]
+    up: Option<crate::cmd::view::Up>,
     /// Also write the cleaned markers as C3D: a file (one input) or a folder.
     #[arg(long, value_name = "PATH", help_heading = "Output")]
     markers_out: Option<PathBuf>,
@@ -57,19 +84,33 @@ struct Solved {
 
 /// Where each input's output goes: `output` itself for one named file, else a mirror of the
 /// inputs under the folder `output` with `extension`.
-/// A named file must have that extension: `-o x.glb` must not silently get a BVH.
-fn outputs(given: &[PathBuf], files: &[PathBuf], output: &Path, extension: &str) -> Result<Vec<PathBuf>> {
+/// A named file must have one of `allowed` extensions: `-o x.c3d` must not silently get a BVH.
+fn outputs(
+    given: &[PathBuf],
+    files: &[PathBuf],
+    output: &Path,
+    extension: &str,
+    allowed: &[&str],
+) -> Result<Vec<PathBuf>> {
     if files.len() == 1 && given.len() == 1 && !given[0].is_dir() && !output.is_dir() {
-        if !inputs::has_extension(output, &[extension]) {
+        if !inputs::has_extension(output, allowed) {
             return Err(inputs::usage(format!(
-                "{}: this output is written as {}; name it .{extension} (or give a folder)",
+                "{}: name this output .{} (or give a folder)",
                 output.display(),
-                extension.to_ascii_uppercase()
+                allowed.join(", .")
             )));
         }
         return Ok(vec![output.to_path_buf()]);
     }
     Ok(inputs::output_paths(files, output, Some(extension)))
+}
+
+/// The rotation from a solver's motion frame to its lab frame.
+fn to_lab(lab: LabFrame) -> Quat {
+    match lab {
+        LabFrame::Motion => Quat::identity(),
+        LabFrame::ZUpFromYUp => locap_core::units::y_up_to_z_up_rotation(),
+    }
 }
 
 fn read_model(path: &Path) -> Result<Vec<u8>> {
@@ -95,9 +136,12 @@ pub fn run(args: Args) -> Result<ExitCode> {
     }
     drop(probe);
     let files = inputs::expand(&args.inputs, &["c3d", "trc"])?;
-    let targets = outputs(&args.inputs, &files, &args.output, "bvh")?;
+    let targets = outputs(&args.inputs, &files, &args.output, &args.to, export::MOTION_EXTENSIONS)?;
+    if args.with_markers && !targets.iter().all(|t| inputs::has_extension(t, &["gltf", "glb"])) {
+        return Err(inputs::usage("--with-markers goes with glTF output (.gltf, .glb)"));
+    }
     let marker_targets = match &args.markers_out {
-        Some(p) => Some(outputs(&args.inputs, &files, p, "c3d")?),
+        Some(p) => Some(outputs(&args.inputs, &files, p, "c3d", &["c3d"])?),
         None => None,
     };
     inputs::check_outputs(&[targets.clone(), marker_targets.clone().unwrap_or_default()].concat())?;
@@ -127,7 +171,11 @@ pub fn run(args: Args) -> Result<ExitCode> {
         let (motion, cleaned) = solver.solve(&take, filler.as_ref())?;
         let seconds = t0.elapsed().as_secs_f64();
         inputs::create_parent(&targets[i])?;
-        locap_io::bvh::write_bvh_path(&motion, LengthUnit::Centimetre, &targets[i])?;
+        let lab = solver.meta.lab;
+        let motion = axes::motion_to_tools_y_up(&motion, to_lab(lab), lab.up_axis());
+        let markers = args.with_markers.then(|| axes::take_with_up_axis(cleaned.take(), UpAxis::Y));
+        let choices = export::MotionOutput { bvh_unit: args.bvh_unit, markers: markers.as_ref() };
+        export::write_motion_path(&motion, &choices, &targets[i])?;
         if let Some(path) = marker_target {
             inputs::create_parent(path)?;
             let mut file = match c3d_input {
@@ -137,6 +185,9 @@ pub fn run(args: Args) -> Result<ExitCode> {
                 }
                 None => locap_io::c3d::C3dFile::from_take(cleaned.take())?,
             };
+            if let Some(up) = args.up {
+                axes::set_c3d_up_axis(&mut file, up.into()).map_err(|e| e.in_file(input))?;
+            }
             // What this cleaning did, recorded as `locap clean` records it.
             let mut record = cleaned.provenance();
             record.method = Some(format!("locap solve: {}", cleaned.method));

@@ -32,9 +32,11 @@ pub struct Args {
     /// Length unit of the BVH file (BVH does not record it).
     #[arg(long, default_value = "cm", value_parser = crate::cmd::convert::parse_unit, value_name = "UNIT", help_heading = "Overlays")]
     bvh_unit: LengthUnit,
-    /// Vertical axis of the motion (BVH files are Y-up by convention).
-    #[arg(long, value_enum, default_value_t = Up::Y, help_heading = "Overlays")]
-    motion_up: Up,
+    /// Axes of the motion: `y` for Y-up in CMU's convention (a Z-up lab's (x, y, z) is
+    /// (y, z, x): BVH converted from CMU's ASF/AMC), `tools` for the Y-up of animation tools
+    /// that `locap solve` writes ((x, z, -y)), `z` for Z-up.
+    #[arg(long, value_enum, default_value_t = MotionUp::Y, help_heading = "Overlays")]
+    motion_up: MotionUp,
     /// A second take to overlay (e.g. ground truth); markers matched by name, same frames.
     #[arg(long, value_name = "TAKE", help_heading = "Overlays")]
     compare: Option<PathBuf>,
@@ -50,6 +52,26 @@ pub enum Up {
     Y,
     /// +Z up.
     Z,
+}
+
+/// Axes of a `--motion` file.
+#[derive(Debug, Clone, Copy, ValueEnum)]
+pub enum MotionUp {
+    /// +Y up, CMU's convention (`locap_core::units::z_up_to_y_up`).
+    Y,
+    /// +Y up, the animation tools' convention (`locap_core::units::z_up_to_tools_y_up`).
+    Tools,
+    /// +Z up.
+    Z,
+}
+
+impl From<Up> for UpAxis {
+    fn from(up: Up) -> UpAxis {
+        match up {
+            Up::Y => UpAxis::Y,
+            Up::Z => UpAxis::Z,
+        }
+    }
 }
 
 /// Runs `locap view`.
@@ -69,7 +91,18 @@ pub fn run(args: Args) -> Result<ExitCode> {
             .with_context(|| format!("{}: cannot create output folder", args.output.display()))?;
     }
     let motion = match &args.motion {
-        Some(path) => Some(bvh::read_bvh_path(path, args.bvh_unit)?),
+        Some(path) => {
+            let motion = bvh::read_bvh_path(path, args.bvh_unit)?;
+            Some(match args.motion_up {
+                // The viewer places Y-up data by CMU's convention: turn the tools' Y-up back
+                // to the lab and into that one.
+                MotionUp::Tools => motion.rotated(
+                    locap_core::units::y_up_to_z_up_rotation().inverse()
+                        * locap_core::units::z_up_to_tools_y_up_rotation().inverse(),
+                ),
+                MotionUp::Y | MotionUp::Z => motion,
+            })
+        }
         None => None,
     };
     let compare = match &args.compare {
@@ -82,8 +115,8 @@ pub fn run(args: Args) -> Result<ExitCode> {
         inputs::create_parent(&targets[i])?;
         let (take, states) = read_take(input)?;
         let up = match args.motion_up {
-            Up::Y => UpAxis::Y,
-            Up::Z => UpAxis::Z,
+            MotionUp::Y | MotionUp::Tools => UpAxis::Y,
+            MotionUp::Z => UpAxis::Z,
         };
         let edges = locap_clean::neighbours::stable_edges(&take, args.edges);
         let page = locap_view::render(&ViewInput {
