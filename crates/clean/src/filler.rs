@@ -55,6 +55,7 @@ impl Filler for FillConfig {
     fn describe(&self) -> String {
         match self.method {
             crate::FillMethod::Edm => format!("Edm K={}", self.neighbours),
+            crate::FillMethod::Auto => auto::AutoConfig::from_fill(self).describe(),
             method => format!("{method:?}"),
         }
     }

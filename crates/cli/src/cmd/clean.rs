@@ -35,7 +35,7 @@ pub struct Args {
     #[arg(short, long, value_name = "PATH", help_heading = "Output")]
     output: PathBuf,
     /// Gap-filling method.
-    #[arg(long, value_enum, default_value_t = Method::Edm, help_heading = "Filling")]
+    #[arg(long, value_enum, default_value_t = Method::Auto, help_heading = "Filling")]
     method: Method,
     /// Refiner models for `--method neural` (from `locap train fill`; a body model and hand
     /// models may be given together). Default: the refiners shipped with locap that fit the

@@ -1,6 +1,8 @@
 //! `locap solve`: the whole LocalMoCap pipeline on raw labeled takes (sections 3.1-3.2):
-//! swapped labels and outliers repaired, gaps filled (EDM + the learned refiner: the shipped
-//! one when it fits the markers, or `--refiner`; EDM alone with `--no-refiner`), then the motion
+//! swapped labels and outliers repaired, gaps filled (`--fill`, as `locap clean --method`: by
+//! default per gap with the method that filled trial gaps of its length best,
+//! `locap_clean::auto`; the learned refiner only with `--fill neural` or `--refiner`, since on held-out takes it
+//! filled worse than the per-gap choice, `docs/benchmarks.md`), then the motion
 //! solver turns every frame into joint rotations and the root position, with bone lengths fitted to the subject (offsets averaged over the take). Writes
 //! the motion at the take's own frame rate with exactly its frame count as BVH, glTF / GLB,
 //! FBX or OpenSim `.mot` (by the output's extension, `locap_io::export`), in the Y-up frame of
@@ -14,8 +16,9 @@
 //! keeps the input file's parameters and analog data and records the cleaning in the `LOCAP`
 //! group, as `locap clean` does.
 
+use crate::cmd::clean::Method as FillArg;
 use crate::inputs;
-use anyhow::{Context, Result};
+use anyhow::{Context, Result, bail};
 use clap::Parser;
 use locap_clean::{FillConfig, Filler};
 use locap_core::{LengthUnit, Quat, UpAxis};
@@ -65,12 +68,16 @@ pub struct Args {
     /// Solver model (from `locap train solve`). Default: the built-in CMU 41-marker solver.
     #[arg(long, value_name = "MODEL", help_heading = "Models")]
     model: Option<PathBuf>,
-    /// Gap-fill refiner model (from `locap train fill`). Default: the shipped refiner when it
-    /// fits the take's markers (else EDM alone).
+    /// Gap-filling method, as `locap clean --method`. `neural` refines EDM with the shipped
+    /// refiners that fit the take's markers (or `--refiner`).
+    #[arg(long, value_enum, default_value_t = FillArg::Auto, value_name = "METHOD", help_heading = "Filling")]
+    fill: FillArg,
+    /// Gap-fill refiner model (from `locap train fill`) to refine EDM's fill with (implies
+    /// `--fill neural`).
     #[arg(long, value_name = "MODEL", help_heading = "Models")]
     refiner: Option<PathBuf>,
-    /// Fill gaps with EDM alone, without a refiner.
-    #[arg(long, conflicts_with = "refiner", help_heading = "Models")]
+    /// No refiner: what `solve` does by default now (kept so older scripts still run).
+    #[arg(long, hide = true, conflicts_with = "refiner")]
     no_refiner: bool,
 }
 
@@ -159,14 +166,15 @@ pub fn run(args: Args) -> Result<ExitCode> {
         // One solver per job: a burn module is not shared between threads.
         let device = Default::default();
         let solver = load_solver(&device)?;
-        let filler: Box<dyn Filler> = match (&refiner, args.no_refiner) {
+        let filler: Box<dyn Filler> = match (&refiner, args.fill) {
             (Some(bytes), _) => Box::new(Refiner::from_bytes(bytes, &device)?),
-            (None, true) => Box::new(FillConfig::default()),
-            // The shipped refiners that fit this take (none: EDM alone).
-            (None, false) => match locap_nn::shipped::refiners_for(&take, &device)? {
-                fitting if fitting.is_empty() => Box::new(FillConfig::default()),
+            (None, FillArg::Neural) => match locap_nn::shipped::refiners_for(&take, &device)? {
+                fitting if fitting.is_empty() => {
+                    bail!("no shipped refiner fits this take's markers; give one with --refiner, or use another --fill")
+                }
                 fitting => Box::new(fitting),
             },
+            (None, fill) => Box::new(FillConfig { method: fill.into(), ..FillConfig::default() }),
         };
         let (motion, cleaned) = solver.solve(&take, filler.as_ref())?;
         let seconds = t0.elapsed().as_secs_f64();
