@@ -157,7 +157,10 @@ impl MarkerModel {
                 JointDofs::Free => JointDofs::Free,
                 JointDofs::Axes(axes) => {
                     if axes.len() > 3 {
-                        return Err(LabelError::Config(format!("a joint has {} rotation axes (at most 3)", axes.len())));
+                        return Err(LabelError::Config(format!(
+                            "a joint has {} rotation axes (at most 3)",
+                            axes.len()
+                        )));
                     }
                     let mut out = Vec::with_capacity(axes.len());
                     for a in axes {
@@ -179,8 +182,7 @@ impl MarkerModel {
     pub fn rotating(&self) -> Vec<bool> {
         (0..self.skeleton.len())
             .map(|j| {
-                self.moving.contains(&j)
-                    && !matches!(&self.dofs[j], JointDofs::Axes(axes) if axes.is_empty() && j != 0)
+                self.moving.contains(&j) && !matches!(&self.dofs[j], JointDofs::Axes(axes) if axes.is_empty() && j != 0)
             })
             .collect()
     }
@@ -299,6 +301,9 @@ pub struct IkConfig {
     pub optimizer: Optimizer,
     /// Re-base the root rotation after every frame (a subject turning round and round).
     pub rebase_root: bool,
+    /// The limit term bounds the root's rotation too (the paper's energy; a kinematic solver
+    /// lets the subject face any way).
+    pub root_limited: bool,
 }
 
 /// The minimiser of the pose energy.
@@ -330,6 +335,7 @@ impl IkConfig {
             huber_mm: 20.0,
             optimizer: Optimizer::LevenbergMarquardt,
             rebase_root: true,
+            root_limited: false,
         }
     }
 }
@@ -350,6 +356,7 @@ impl Default for IkConfig {
             huber_mm: 0.0,
             optimizer: Optimizer::Bfgs,
             rebase_root: false,
+            root_limited: true,
         }
     }
 }
@@ -378,7 +385,8 @@ impl PoseProblem<'_> {
             let Some(m) = m else { continue };
             if let Some(o) = self.observed[i] {
                 let d2 = (m - o).norm_squared() / (DISTANCE_UNIT_MM * DISTANCE_UNIT_MM);
-                observed += if huber > 0.0 && d2 > huber * huber { 2.0 * huber * d2.sqrt() - huber * huber } else { d2 };
+                observed +=
+                    if huber > 0.0 && d2 > huber * huber { 2.0 * huber * d2.sqrt() - huber * huber } else { d2 };
             } else if let Some((v, variance)) = self.predicted[i] {
                 predicted += (m - v).norm_squared() / variance.max(PREDICTION_FLOOR_MM * PREDICTION_FLOOR_MM);
             }
@@ -401,6 +409,7 @@ impl PoseProblem<'_> {
                     rest += v.norm_squared();
                     axes.iter().map(|a| axis_excess(a, &v).powi(2)).sum::<f64>()
                 }
+                _ if j == 0 && !self.config.root_limited => 0.0,
                 _ => {
                     if j != 0 {
                         rest += v[0] * v[0] + v[1] * v[1] + v[2] * v[2];
@@ -540,6 +549,7 @@ impl PoseProblem<'_> {
                         }
                     }
                 }
+                _ if j == 0 && !self.config.root_limited => {}
                 _ => {
                     let norm = v.norm();
                     if norm > limit {
@@ -897,7 +907,7 @@ impl MarkerModel {
     }
 
     /// The model with joint offsets scaled per joint and the markers' offsets replaced.
-    fn resized(&self, scales: &[f64], offsets: &[Option<(Vec3, Option<Vec3>)>]) -> MarkerModel {
+    fn resized(&self, scales: &[f64], offsets: &NewOffsets) -> MarkerModel {
         let joints: Vec<Joint> = self
             .skeleton
             .joints()
@@ -1053,23 +1063,25 @@ fn refit_poses(
         .collect()
 }
 
+/// Per marker, its offset on its joint and, for a blended marker, on the second joint (mm).
+type NewOffsets = Vec<Option<(Vec3, Option<Vec3>)>>;
+
 /// The calibration's linear least squares: with every frame's rotations fixed, each marker is
 /// `root + sum_b s_b G_parent(b) offset_b + G_j o` (skeleton frame), linear in the roots, the
 /// bone scales `s_b` and the offsets `o`. `per_bone`: one scale per bone and the offsets, with
 /// priors; else one overall scale of bones and offsets together. Returns the per-joint scales
 /// and the new offsets (primary, blend) per marker.
-#[allow(clippy::type_complexity)]
 fn calibrate_linear(
     model: &MarkerModel,
     poses: &[(Vec<Quat>, Vec3)],
     frames: &[&[Option<Vec3>]],
     per_bone: bool,
     config: &SequenceConfig,
-) -> (Vec<f64>, Vec<Option<(Vec3, Option<Vec3>)>>) {
+) -> (Vec<f64>, NewOffsets) {
     let sk = &model.skeleton;
     let joints = sk.len();
     let k = poses.len();
-    let unchanged: Vec<Option<(Vec3, Option<Vec3>)>> =
+    let unchanged: NewOffsets =
         model.attachments.iter().map(|a| a.as_ref().map(|a| (a.offset_mm, a.blend.map(|b| b.2)))).collect();
     // Unknowns: roots (3 per frame), then scales, then offsets (3 per attached marker).
     let scaled: Vec<Option<usize>> = {
@@ -1319,7 +1331,8 @@ pub(crate) mod tests {
         theta[3..6].copy_from_slice(&[0.3, -0.2, 0.5]);
         theta[9..12].copy_from_slice(&[0.2, 0.1, -0.4]); // forearm: off its axis and below its range
         let truth = model.markers_mm(&arm_pose(&model, 0.2));
-        let observed: Vec<Option<Vec3>> = truth.iter().enumerate().map(|(i, p)| if i == 4 { None } else { *p }).collect();
+        let observed: Vec<Option<Vec3>> =
+            truth.iter().enumerate().map(|(i, p)| if i == 4 { None } else { *p }).collect();
         let mut predicted = vec![None; truth.len()];
         predicted[4] = Some((truth[4].unwrap() + Vec3::new(3.0, 0.0, 0.0), 900.0));
         let (a, b) = (arm_pose(&model, 0.6), arm_pose(&model, 0.5));
@@ -1370,7 +1383,10 @@ pub(crate) mod tests {
 
     /// A synthetic take of the arm: the subject 10% larger than the template, markers placed
     /// 8 mm off the template's, the root turning round three times.
-    fn subject_take(model: &MarkerModel, frames: usize) -> (MarkerModel, Vec<Vec<Option<Vec3>>>, Vec<Vec<f64>>) {
+    /// Per frame, each marker's position.
+    type Frames = Vec<Vec<Option<Vec3>>>;
+
+    fn subject_take(model: &MarkerModel, frames: usize) -> (MarkerModel, Frames, Vec<Vec<f64>>) {
         let joints: Vec<Joint> =
             model.skeleton.joints().iter().map(|j| Joint { offset_mm: j.offset_mm * 1.1, ..j.clone() }).collect();
         let mut subject = model.clone();
@@ -1384,7 +1400,8 @@ pub(crate) mod tests {
                 let t = f as f64 / frames as f64;
                 let mut theta = arm_pose(&subject, 0.5 + 0.5 * (6.0 * t).sin());
                 let turn = 3.0 * std::f64::consts::TAU * t;
-                let q = Quat::from_scaled_axis(Vec3::new(0.0, turn, 0.0)) * Quat::from_scaled_axis(Vec3::new(0.3, 0.0, 0.0));
+                let q = Quat::from_scaled_axis(Vec3::new(0.0, turn, 0.0))
+                    * Quat::from_scaled_axis(Vec3::new(0.3, 0.0, 0.0));
                 // The root's vector folded into [0, pi]: the tracker must follow it across.
                 let v = q.scaled_axis();
                 theta[3..6].copy_from_slice(&[v.x, v.y, v.z]);
@@ -1417,8 +1434,9 @@ pub(crate) mod tests {
         // bone length and offsets trade a little, a few degrees at the elbow.
         assert!(worst < 5.0, "elbow off by {worst:.2} deg");
         // Without calibration the template's size shows in the residual.
-        let plain = solve_sequence(model, &frames, 60.0, &SequenceConfig { calibration_frames: 0, ..Default::default() })
-            .unwrap();
+        let plain =
+            solve_sequence(model, &frames, 60.0, &SequenceConfig { calibration_frames: 0, ..Default::default() })
+                .unwrap();
         assert!(plain.rms_mm(&frames) > 2.0 * rms, "{} vs {rms}", plain.rms_mm(&frames));
     }
 

@@ -180,7 +180,8 @@ impl<'a> Reader<'a> {
                 expected: if N == 1 { "a finite number" } else { "finite numbers, as many as expected" },
             })
         };
-        let values: Vec<f64> = text.split_whitespace().map(|v| v.parse::<f64>().map_err(|_| bad())).collect::<Result<_, _>>()?;
+        let values: Vec<f64> =
+            text.split_whitespace().map(|v| v.parse::<f64>().map_err(|_| bad())).collect::<Result<_, _>>()?;
         let out: [f64; N] = values.try_into().map_err(|_| bad())?;
         if out.iter().any(|v| !v.is_finite()) {
             return Err(bad());
@@ -245,7 +246,8 @@ impl<'a> Reader<'a> {
             for c in list.children().filter(|c| c.has_tag_name("Coordinate")) {
                 let cname = self.name(c)?;
                 let flag = |tag| self.child(c, tag).and_then(|n| n.text()).is_some_and(|t| t.trim() == "true");
-                let [lo, hi] = if self.child(c, "range").is_some() { self.numbers::<2>(c, "range")? } else { [-1e9, 1e9] };
+                let [lo, hi] =
+                    if self.child(c, "range").is_some() { self.numbers::<2>(c, "range")? } else { [-1e9, 1e9] };
                 let turn = std::f64::consts::PI;
                 let (lo, hi) = if flag("clamped") { (lo.max(-turn), hi.min(turn)) } else { (-turn, turn) };
                 coordinates.push((cname, lo.min(hi), hi.max(lo), flag("locked")));
@@ -344,10 +346,16 @@ pub fn layout_from_opensim(model: XmlSource, markers: Option<XmlSource>) -> Resu
     let mut by_child: HashMap<&str, &OsimJoint> = HashMap::new();
     for j in &joints {
         if !bodies.contains(&j.child) {
-            return Err(tree(format!("line {}: joint {:?} has child {:?}, which is not a body", j.line, j.name, j.child)));
+            return Err(tree(format!(
+                "line {}: joint {:?} has child {:?}, which is not a body",
+                j.line, j.name, j.child
+            )));
         }
         if j.parent != "ground" && !bodies.contains(&j.parent) {
-            return Err(tree(format!("line {}: joint {:?} has parent {:?}, which is not a body", j.line, j.name, j.parent)));
+            return Err(tree(format!(
+                "line {}: joint {:?} has parent {:?}, which is not a body",
+                j.line, j.name, j.parent
+            )));
         }
         if by_child.insert(j.child.as_str(), j).is_some() {
             return Err(tree(format!("body {:?} is the child of two joints (a closed loop)", j.child)));
@@ -359,7 +367,10 @@ pub fn layout_from_opensim(model: XmlSource, markers: Option<XmlSource>) -> Resu
         [] => return Err(tree("no joint has ground as its parent".into())),
         many => {
             let names: Vec<&str> = many.iter().map(|j| j.child.as_str()).collect();
-            return Err(tree(format!("several bodies are jointed to ground ({}); locap needs one root", names.join(", "))));
+            return Err(tree(format!(
+                "several bodies are jointed to ground ({}); locap needs one root",
+                names.join(", ")
+            )));
         }
     };
     // Parents first: breadth first from the root.
@@ -390,7 +401,12 @@ pub fn layout_from_opensim(model: XmlSource, markers: Option<XmlSource>) -> Resu
                 .iter()
                 .map(|(name, axis, lo, hi)| {
                     let a = (joint_frame.rotation * axis).normalize();
-                    Dof { name: name.clone(), axis: [a.x, a.y, a.z], min_deg: lo.to_degrees(), max_deg: hi.to_degrees() }
+                    Dof {
+                        name: name.clone(),
+                        axis: [a.x, a.y, a.z],
+                        min_deg: lo.to_degrees(),
+                        max_deg: hi.to_degrees(),
+                    }
                 })
                 .collect()
         });
@@ -514,13 +530,23 @@ mod tests {
         let broken = MODEL.replace("<translation>0.2 0.5 0</translation>", "<translation>0.2 x 0</translation>");
         let e = layout_from_opensim(XmlSource { name: "arm.osim", text: &broken }, None).unwrap_err();
         assert!(e.to_string().starts_with("arm.osim: line "), "{e}");
-        let other = MODEL.replace("/bodyset/fore</socket_parent_frame><location>", "/bodyset/hand</socket_parent_frame><location>");
+        let other = MODEL
+            .replace("/bodyset/fore</socket_parent_frame><location>", "/bodyset/hand</socket_parent_frame><location>");
         let e = layout_from_opensim(XmlSource { name: "arm.osim", text: &other }, None).unwrap_err();
         assert!(e.to_string().contains("\"hand\""), "{e}");
-        let two_roots = MODEL.replace("<socket_parent_frame>/bodyset/upper</socket_parent_frame><socket_child_frame>/bodyset/fore", "<socket_parent_frame>/ground</socket_parent_frame><socket_child_frame>/bodyset/fore");
-        assert!(matches!(layout_from_opensim(XmlSource { name: "m", text: &two_roots }, None).unwrap_err().problem, Problem::Tree(_)));
+        let two_roots = MODEL.replace(
+            "<socket_parent_frame>/bodyset/upper</socket_parent_frame><socket_child_frame>/bodyset/fore",
+            "<socket_parent_frame>/ground</socket_parent_frame><socket_child_frame>/bodyset/fore",
+        );
+        assert!(matches!(
+            layout_from_opensim(XmlSource { name: "m", text: &two_roots }, None).unwrap_err().problem,
+            Problem::Tree(_)
+        ));
         let ball = MODEL.replace("PinJoint", "ScapulothoracicJoint");
-        assert!(matches!(layout_from_opensim(XmlSource { name: "m", text: &ball }, None).unwrap_err().problem, Problem::UnsupportedJoint { .. }));
+        assert!(matches!(
+            layout_from_opensim(XmlSource { name: "m", text: &ball }, None).unwrap_err().problem,
+            Problem::UnsupportedJoint { .. }
+        ));
     }
 
     proptest! {

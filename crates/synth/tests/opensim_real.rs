@@ -26,8 +26,8 @@ fn the_rajagopal_model_gives_the_62_marker_set_of_the_takes() {
     let layout = layout(&data);
     let skeleton_section = layout.skeleton.as_ref().unwrap();
     let skeleton = skeleton_section.to_skeleton().unwrap();
-    // 22 bodies besides ground, pelvis first.
-    assert_eq!(skeleton.len(), 22);
+    // 23 bodies besides ground, pelvis first.
+    assert_eq!(skeleton.len(), 23);
     assert_eq!(skeleton.joints()[0].name, "pelvis");
     let take = locap_io::c3d::read_path(&data.join("labeling/KneeltoProne01.c3d")).unwrap().to_take().unwrap();
     let labels: Vec<String> = take.markers().iter().map(|m| m.label.clone()).collect();
