@@ -242,7 +242,12 @@ impl MarkerModel {
     /// The model's marker positions (mm) in pose `theta`.
     pub fn markers_mm(&self, theta: &[f64]) -> Vec<Option<Vec3>> {
         let (local, root) = self.pose(theta);
-        let pose = forward_kinematics(&self.skeleton, &local, root);
+        self.markers_at(&local, root)
+    }
+
+    /// The model's markers (lab frame, mm) for local rotations `local` and root `root_mm`.
+    pub fn markers_at(&self, local: &[Quat], root_mm: Vec3) -> Vec<Option<Vec3>> {
+        let pose = forward_kinematics(&self.skeleton, local, root_mm);
         let on = |j: usize, o: &Vec3| self.lab * (pose.positions_mm[j] + pose.rotations[j] * o);
         self.attachments
             .iter()
@@ -889,23 +894,6 @@ impl SequenceFit {
 }
 
 impl MarkerModel {
-    /// The model's markers (lab frame, mm) for local rotations `local` and root `root_mm`.
-    pub fn markers_at(&self, local: &[Quat], root_mm: Vec3) -> Vec<Option<Vec3>> {
-        let pose = forward_kinematics(&self.skeleton, local, root_mm);
-        let on = |j: usize, o: &Vec3| self.lab * (pose.positions_mm[j] + pose.rotations[j] * o);
-        self.attachments
-            .iter()
-            .map(|a| {
-                let a = a.as_ref()?;
-                let p = on(a.joint, &a.offset_mm);
-                Some(match &a.blend {
-                    Some((j, w, o)) => p * (1.0 - w) + on(*j, o) * *w,
-                    None => p,
-                })
-            })
-            .collect()
-    }
-
     /// The model with joint offsets scaled per joint and the markers' offsets replaced.
     fn resized(&self, scales: &[f64], offsets: &NewOffsets) -> MarkerModel {
         let joints: Vec<Joint> = self
