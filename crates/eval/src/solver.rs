@@ -10,6 +10,13 @@
 //! * **JPE**, mm: distance between solved and true global joint positions (every joint,
 //!   end sites included), averaged over joints and frames.
 //!
+//! JOE and JPE are also given over the joints the markers constrain (a marker rides on the
+//! joint or below it, by the kinematic solver's layout): a 41-marker body set barely sees the
+//! fingers and thumbs, whose errors otherwise weigh like any limb's.
+//!
+//! Methods are the networks ([`Method::Network`]) and the kinematic solver
+//! ([`Method::Kinematic`], the "optimization-based" column, `locap_nn::kinematic`).
+//!
 //! Each take is solved exactly as `locap solve` solves a real one
 //! ([`Solver::solve_cleaned`]): bone offsets averaged over the take, root from the waist
 //! frame, so the figures include the skeleton fit. Besides the means, the evaluation keeps the
@@ -21,6 +28,7 @@
 use locap_core::gaps::{gaps_of, length_bin};
 use locap_nn::NnError;
 use locap_nn::Refiner;
+use locap_nn::kinematic::KinematicSolver;
 use locap_nn::solver::Solver;
 use locap_nn::solver::data::{Cleaned, SolverShard, clean_for_solving};
 use rayon::prelude::*;
@@ -106,6 +114,52 @@ pub struct MethodScores {
     pub ompe_by_gap_mm: Vec<Option<f64>>,
     /// Seconds spent solving (network and skeleton, without cleaning).
     pub solve_seconds: f64,
+    /// Frames solved.
+    #[serde(default)]
+    pub frames: usize,
+    /// JOE over the rotating joints the markers constrain, degrees.
+    #[serde(default)]
+    pub joe_constrained_deg: Option<f64>,
+    /// JPE over the joints the markers constrain, mm.
+    #[serde(default)]
+    pub jpe_constrained_mm: Option<f64>,
+}
+
+/// A solving method to score.
+#[derive(Debug, Clone, Copy)]
+pub enum Method<'a> {
+    /// A network solver.
+    Network(&'a Solver),
+    /// The kinematic solver.
+    Kinematic(&'a KinematicSolver),
+}
+
+impl Method<'_> {
+    /// Per joint: the method solves its rotation (JOE is taken over these).
+    pub fn rotating(&self) -> Vec<bool> {
+        match self {
+            Method::Network(s) => s.meta.rotating.clone(),
+            Method::Kinematic(k) => k.rotating(),
+        }
+    }
+
+    fn skeleton(&self) -> &locap_core::Skeleton {
+        match self {
+            Method::Network(s) => &s.meta.skeleton,
+            Method::Kinematic(k) => k.skeleton(),
+        }
+    }
+
+    /// Solves a cleaned take.
+    ///
+    /// # Errors
+    /// As the method's own `solve_cleaned`.
+    pub fn solve_cleaned(&self, cleaned: &Cleaned, rate_hz: f64) -> Result<locap_core::Motion, NnError> {
+        match self {
+            Method::Network(s) => s.solve_cleaned(cleaned, rate_hz),
+            Method::Kinematic(k) => k.solve_cleaned(cleaned, rate_hz).map(|(m, _)| m),
+        }
+    }
 }
 
 /// Accumulated errors of one method.
@@ -115,6 +169,7 @@ struct Acc {
     jpe: Vec<Mean>,
     jpe_by_gap: Vec<Mean>,
     seconds: f64,
+    frames: usize,
 }
 
 impl Acc {
@@ -124,6 +179,7 @@ impl Acc {
             jpe: vec![Mean::default(); joints],
             jpe_by_gap: vec![Mean::default(); GAP_BIN_COUNT],
             seconds: 0.0,
+            frames: 0,
         }
     }
     fn merge(&mut self, o: &Acc) {
@@ -131,6 +187,7 @@ impl Acc {
         self.jpe.iter_mut().zip(&o.jpe).for_each(|(a, b)| a.merge(b));
         self.jpe_by_gap.iter_mut().zip(&o.jpe_by_gap).for_each(|(a, b)| a.merge(b));
         self.seconds += o.seconds;
+        self.frames += o.frames;
     }
 }
 
@@ -175,11 +232,26 @@ pub fn evaluate(
     shards: &[SolverShard],
     refiner: Option<&Refiner>,
 ) -> Result<Vec<MethodScores>, SolverEvalError> {
+    let methods: Vec<(String, Method)> = solvers.iter().map(|(n, s)| (n.clone(), Method::Network(s))).collect();
+    evaluate_methods(&methods, shards, refiner, None)
+}
+
+/// Scores `methods` (name, method) on `shards`, all on the same cleaning (EDM, or EDM +
+/// `refiner`); with `constrained` (per joint), also over the joints it marks.
+///
+/// # Errors
+/// A method cannot run on a shard (other markers or skeleton), or the skeletons differ.
+pub fn evaluate_methods(
+    methods: &[(String, Method)],
+    shards: &[SolverShard],
+    refiner: Option<&Refiner>,
+    constrained: Option<&[bool]>,
+) -> Result<Vec<MethodScores>, SolverEvalError> {
     let Some(first) = shards.first() else { return Err(SolverEvalError::NoShards) };
     let j = first.skeleton.len();
-    for (name, s) in solvers {
+    for (name, s) in methods {
         let names = |sk: &locap_core::Skeleton| sk.joints().iter().map(|jj| jj.name.clone()).collect::<Vec<_>>();
-        if shards.iter().any(|sh| names(&sh.skeleton) != names(&s.meta.skeleton)) {
+        if shards.iter().any(|sh| names(&sh.skeleton) != names(s.skeleton())) {
             return Err(SolverEvalError::OtherSkeleton { model: name.clone() });
         }
     }
@@ -198,7 +270,7 @@ pub fn evaluate(
         fill_by.iter_mut().zip(&b).for_each(|(x, y)| x.merge(y));
     }
     let mut out = Vec::new();
-    for (name, solver) in solvers {
+    for (name, solver) in methods {
         let mut acc = Acc::new(j);
         for (shard, c) in shards.iter().zip(&cleaned) {
             acc.merge(&score_take(solver, shard, c)?);
@@ -207,6 +279,11 @@ pub fn evaluate(
             let mut total = Mean::default();
             v.iter().for_each(|m| total.merge(m));
             total.get().unwrap_or(f64::NAN)
+        };
+        let mean_where = |v: &[Mean], mask: &[bool]| {
+            let mut total = Mean::default();
+            v.iter().zip(mask).filter(|(_, m)| **m).for_each(|(x, _)| total.merge(x));
+            total.get()
         };
         out.push(MethodScores {
             name: name.clone(),
@@ -218,13 +295,17 @@ pub fn evaluate(
             jpe_by_gap_mm: acc.jpe_by_gap.iter().map(Mean::get).collect(),
             ompe_by_gap_mm: fill_by.iter().map(Mean::get).collect(),
             solve_seconds: acc.seconds,
+            frames: acc.frames,
+            joe_constrained_deg: constrained.and_then(|c| mean_where(&acc.joe, c)),
+            jpe_constrained_mm: constrained.and_then(|c| mean_where(&acc.jpe, c)),
         });
     }
     Ok(out)
 }
 
 /// One solver on one cleaned shard.
-fn score_take(solver: &Solver, shard: &SolverShard, cleaned: &Cleaned) -> Result<Acc, SolverEvalError> {
+fn score_take(solver: &Method, shard: &SolverShard, cleaned: &Cleaned) -> Result<Acc, SolverEvalError> {
+    let rotating = solver.rotating();
     let started = std::time::Instant::now();
     let motion = solver
         .solve_cleaned(cleaned, shard.clean.frame_rate_hz())
@@ -232,6 +313,7 @@ fn score_take(solver: &Solver, shard: &SolverShard, cleaned: &Cleaned) -> Result
     let j = shard.skeleton.len();
     let mut acc = Acc::new(j);
     acc.seconds = started.elapsed().as_secs_f64();
+    acc.frames = motion.frame_count();
     let longest = longest_gap_per_frame(shard);
     for (f, longest) in longest.iter().enumerate().take(motion.frame_count()) {
         let pose = motion.forward_kinematics(f);
@@ -244,7 +326,7 @@ fn score_take(solver: &Solver, shard: &SolverShard, cleaned: &Cleaned) -> Result
         acc.jpe_by_gap[gap_bin(*longest)].add(frame.get().unwrap_or(0.0));
         let truth = &shard.rotations[f * j..(f + 1) * j];
         for (k, (q, t)) in motion.local_rotations(f).iter().zip(truth).enumerate() {
-            if solver.meta.rotating[k] {
+            if rotating[k] {
                 acc.joe[k].add(q.angle_to(t).to_degrees());
             }
         }
@@ -270,8 +352,87 @@ pub fn table(region: &str, scores: &[MethodScores]) -> String {
     };
     row(&mut out, "JOE (deg)", &|s| Some(s.joe_deg));
     row(&mut out, "JPE (mm)", &|s| Some(s.jpe_mm));
+    if scores.iter().any(|s| s.joe_constrained_deg.is_some()) {
+        row(&mut out, "JOE constr.", &|s| s.joe_constrained_deg);
+        row(&mut out, "JPE constr.", &|s| s.jpe_constrained_mm);
+    }
     row(&mut out, "OMPE (mm)", &|s| s.ompe_mm);
+    if scores.iter().any(|s| s.frames > 0) {
+        row(&mut out, "frames/s", &|s| (s.frames > 0).then(|| s.frames as f64 / s.solve_seconds.max(1e-9)));
+    }
     out
+}
+
+/// The largest rotation of any joint `rotating` marks between consecutive frames (degrees),
+/// the joint's name, and how many frame pairs turn some joint by more than `over_deg`.
+pub fn rotation_jumps(motion: &locap_core::Motion, rotating: &[bool], over_deg: f64) -> (f64, String, usize) {
+    let (mut max, mut joint, mut over) = (0.0, String::new(), 0);
+    for f in 1..motion.frame_count() {
+        let mut frame_max: f64 = 0.0;
+        // Local rotations: a parent's turn is not counted again in its children.
+        let (a, b) = (motion.local_rotations(f - 1), motion.local_rotations(f));
+        for (k, (qa, qb)) in a.iter().zip(b).enumerate() {
+            let local = qa.angle_to(qb).to_degrees();
+            if rotating.get(k).copied().unwrap_or(false) {
+                frame_max = frame_max.max(local);
+                if local > max {
+                    max = local;
+                    joint = motion.skeleton.joints()[k].name.clone();
+                }
+            }
+        }
+        if frame_max > over_deg {
+            over += 1;
+        }
+    }
+    (max, joint, over)
+}
+
+/// The wrist joints of the known skeletons and the markers beside them: (joint, markers).
+pub const WRISTS: &[(&str, &[&str])] = &[
+    ("lhand", &["LWRA", "LWRB"]),
+    ("rhand", &["RWRA", "RWRB"]),
+    ("hand_l", &["LRAD", "LULN"]),
+    ("hand_r", &["RRAD", "RULN"]),
+];
+
+/// How well the solved wrists follow their markers: per frame where a wrist's markers are seen,
+/// the distance of the wrist joint (of [`WRISTS`]) from the markers' mean; returns the share of
+/// such samples within `within_mm` and the largest distance (mm). `None`: no wrist of
+/// [`WRISTS`] is in both the motion and the take. The motion is in its Y-up frame; a Z-up take
+/// is compared through the lab convention.
+pub fn wrists_within(motion: &locap_core::Motion, take: &locap_core::Take, within_mm: f64) -> Option<(f64, f64)> {
+    let pairs: Vec<(usize, Vec<usize>)> = WRISTS
+        .iter()
+        .filter_map(|(joint, markers)| {
+            let j = motion.skeleton.index_of(joint)?;
+            let m: Vec<usize> = markers.iter().filter_map(|m| take.marker_index(m)).collect();
+            (!m.is_empty()).then_some((j, m))
+        })
+        .collect();
+    let (mut near, mut n, mut worst) = (0usize, 0usize, 0.0f64);
+    for f in 0..motion.frame_count().min(take.frame_count()) {
+        let pose = motion.forward_kinematics(f);
+        for (j, markers) in &pairs {
+            let seen: Vec<locap_core::Vec3> = markers.iter().filter_map(|&m| take.position_mm(f, m)).collect();
+            if seen.is_empty() {
+                continue;
+            }
+            let mean = seen.iter().sum::<locap_core::Vec3>() / seen.len() as f64;
+            let p = pose.positions_mm[*j];
+            let lab = match take.up_axis {
+                locap_core::UpAxis::Z => locap_core::units::y_up_to_z_up(p),
+                locap_core::UpAxis::Y => p,
+            };
+            let d = (lab - mean).norm();
+            worst = worst.max(d);
+            n += 1;
+            if d <= within_mm {
+                near += 1;
+            }
+        }
+    }
+    (n > 0).then(|| (near as f64 / n as f64, worst))
 }
 
 /// A solved motion against a reference solution of the same take (e.g. CMU's own AMC).

@@ -14,15 +14,32 @@
 //! translation (in decimetres, so it weighs like radians in the smoothness term) and one
 //! rotation vector per joint; terms are dimensionless (distances in units of 10 mm, the
 //! prediction by its own variance); the paper's weights 0.05 / 0.15 / 0.8 / 0.1 are kept. The
-//! skeleton carries no per-joint limits, so the constraint term bounds every joint's rotation
-//! angle by `limit_deg` (biomechanical limits need a per-joint table: not built).
+//! skeleton carries no per-joint limits, so by default the constraint term bounds every joint's
+//! rotation angle by `limit_deg`; a model given per-joint degrees of freedom
+//! ([`MarkerModel::with_dofs`], e.g. an OpenSim model's coordinates and ranges) bounds the
+//! rotation vector's component along each axis by its range and pulls the components along no
+//! axis to zero.
+//!
+//! # The same energy as a kinematic solver
+//! Every term is a sum of squares, so besides BFGS (the labeler's, as the paper) the pose can be
+//! fitted by Levenberg-Marquardt with an analytic Jacobian ([`Optimizer::LevenbergMarquardt`]):
+//! a marker's derivative with respect to the rotation vector `v` of a joint `a` above it is
+//! `-[p - P_a]x G_a J_r(v)` (`J_r`, the right Jacobian of the exponential map), its derivative
+//! with respect to the root translation the identity. A step is kept only when it lowers the
+//! energy itself (with the robust Huber loss of [`IkConfig::huber_mm`] when set, linearised by
+//! reweighting). [`solve_sequence`] uses it for a whole take: a subject calibration (bone
+//! lengths and marker offsets by linear least squares on poses from a subset of frames, as a
+//! studio's range-of-motion calibration does: with the rotations fixed, every marker is linear in
+//! the bone lengths, the offsets and the root), then frame after frame, warm-started, with the
+//! smoothness and limit terms.
 
 use crate::LabelError;
 use argmin::core::{CostFunction, Error, Executor, Gradient, State};
 use argmin::solver::linesearch::MoreThuenteLineSearch;
 use argmin::solver::quasinewton::BFGS;
 use locap_core::skeleton::forward_kinematics;
-use locap_core::{Quat, Skeleton, Vec3};
+use locap_core::{Joint, Quat, Skeleton, Vec3};
+use nalgebra::{DMatrix, DVector, Matrix3};
 
 /// Where a marker sits on the skeleton.
 #[derive(Debug, Clone, PartialEq)]
@@ -45,6 +62,61 @@ pub struct MarkerModel {
     lab: Quat,
     /// Joints with rotation parameters (all but end sites).
     moving: Vec<usize>,
+    /// Per joint: its rotational freedom (all [`JointDofs::Free`] unless given).
+    dofs: Vec<JointDofs>,
+    /// The root's rotation is `root_base * exp(v_root)`: a tracker re-bases it so the rotation
+    /// vector stays far from a full turn, where the exponential map folds.
+    root_base: Quat,
+}
+
+/// The rotational freedom of one joint.
+#[derive(Debug, Clone, PartialEq)]
+pub enum JointDofs {
+    /// Any rotation, bounded in angle by [`IkConfig::limit_deg`].
+    Free,
+    /// Rotation about these axes only, each within its range; an empty list: no rotation.
+    Axes(Vec<DofAxis>),
+}
+
+/// One rotation axis of a joint (joint frame, unit length) and its range.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DofAxis {
+    /// The axis.
+    pub axis: Vec3,
+    /// Smallest rotation about it (rad).
+    pub min_rad: f64,
+    /// Largest rotation about it (rad).
+    pub max_rad: f64,
+}
+
+/// Directions of a joint's rotation vector that no axis allows: an orthonormal basis of the
+/// complement of the axes' span.
+fn locked_directions(axes: &[DofAxis]) -> Vec<Vec3> {
+    let mut basis: Vec<Vec3> = Vec::new();
+    for a in axes.iter().map(|a| a.axis).chain([Vec3::x(), Vec3::y(), Vec3::z()]) {
+        let mut v = a;
+        for b in &basis {
+            v -= b * b.dot(&v);
+        }
+        if v.norm() > 1e-6 && basis.len() < 3 {
+            basis.push(v.normalize());
+        }
+    }
+    // The first `span` vectors span the axes; the rest is locked.
+    let span = {
+        let mut b: Vec<Vec3> = Vec::new();
+        for a in axes {
+            let mut v = a.axis;
+            for x in &b {
+                v -= x * x.dot(&v);
+            }
+            if v.norm() > 1e-6 {
+                b.push(v.normalize());
+            }
+        }
+        b.len()
+    };
+    basis.split_off(span.min(basis.len()))
 }
 
 impl MarkerModel {
@@ -61,7 +133,87 @@ impl MarkerModel {
             }
         }
         let moving = (0..skeleton.len()).filter(|&j| !skeleton.joints()[j].is_end_site).collect();
-        Ok(MarkerModel { skeleton, attachments, moving, lab: Quat::identity() })
+        let dofs = vec![JointDofs::Free; skeleton.len()];
+        Ok(MarkerModel { skeleton, attachments, moving, lab: Quat::identity(), dofs, root_base: Quat::identity() })
+    }
+
+    /// The same model with each joint's rotational freedom (one entry per skeleton joint; the
+    /// root's is ignored: it turns freely).
+    ///
+    /// # Errors
+    /// Not one entry per joint, or an axis that is not a finite non-zero vector or a range
+    /// with `min > max`.
+    pub fn with_dofs(mut self, dofs: Vec<JointDofs>) -> Result<MarkerModel, LabelError> {
+        if dofs.len() != self.skeleton.len() {
+            return Err(LabelError::Config(format!(
+                "{} joint freedoms for a skeleton of {} joints",
+                dofs.len(),
+                self.skeleton.len()
+            )));
+        }
+        let mut checked = Vec::with_capacity(dofs.len());
+        for d in dofs {
+            checked.push(match d {
+                JointDofs::Free => JointDofs::Free,
+                JointDofs::Axes(axes) => {
+                    if axes.len() > 3 {
+                        return Err(LabelError::Config(format!(
+                            "a joint has {} rotation axes (at most 3)",
+                            axes.len()
+                        )));
+                    }
+                    let mut out = Vec::with_capacity(axes.len());
+                    for a in axes {
+                        let n = a.axis.norm();
+                        if !(n.is_finite() && n > 1e-9 && a.min_rad <= a.max_rad) {
+                            return Err(LabelError::Config(format!("a joint axis is not valid: {a:?}")));
+                        }
+                        out.push(DofAxis { axis: a.axis / n, ..a });
+                    }
+                    JointDofs::Axes(out)
+                }
+            });
+        }
+        self.dofs = checked;
+        Ok(self)
+    }
+
+    /// Per joint: it has rotation parameters and its freedom allows some rotation.
+    pub fn rotating(&self) -> Vec<bool> {
+        (0..self.skeleton.len())
+            .map(|j| {
+                self.moving.contains(&j) && !matches!(&self.dofs[j], JointDofs::Axes(axes) if axes.is_empty() && j != 0)
+            })
+            .collect()
+    }
+
+    /// The skeleton.
+    pub fn skeleton(&self) -> &Skeleton {
+        &self.skeleton
+    }
+
+    /// The marker attachments (one per marker).
+    pub fn attachments(&self) -> &[Option<Attachment>] {
+        &self.attachments
+    }
+
+    /// The rotation from the skeleton's frame to the lab's.
+    pub fn lab(&self) -> Quat {
+        self.lab
+    }
+
+    /// Local joint rotations (one per joint) and root position (mm, skeleton frame) of pose
+    /// `theta`.
+    pub fn pose(&self, theta: &[f64]) -> (Vec<Quat>, Vec3) {
+        let mut local = vec![Quat::identity(); self.skeleton.len()];
+        for (k, &j) in self.moving.iter().enumerate() {
+            let v = Vec3::new(theta[3 + 3 * k], theta[4 + 3 * k], theta[5 + 3 * k]);
+            local[j] = Quat::from_scaled_axis(v);
+        }
+        if self.root_base != Quat::identity() {
+            local[0] = self.root_base * local[0];
+        }
+        (local, Vec3::new(theta[0], theta[1], theta[2]) * DECIMETRE_MM)
     }
 
     /// The same model in a lab whose axes are the skeleton's turned by `lab` (for a Y-up
@@ -89,13 +241,13 @@ impl MarkerModel {
 
     /// The model's marker positions (mm) in pose `theta`.
     pub fn markers_mm(&self, theta: &[f64]) -> Vec<Option<Vec3>> {
-        let mut local = vec![Quat::identity(); self.skeleton.len()];
-        for (k, &j) in self.moving.iter().enumerate() {
-            let v = Vec3::new(theta[3 + 3 * k], theta[4 + 3 * k], theta[5 + 3 * k]);
-            local[j] = Quat::from_scaled_axis(v);
-        }
-        let root = Vec3::new(theta[0], theta[1], theta[2]) * DECIMETRE_MM;
-        let pose = forward_kinematics(&self.skeleton, &local, root);
+        let (local, root) = self.pose(theta);
+        self.markers_at(&local, root)
+    }
+
+    /// The model's markers (lab frame, mm) for local rotations `local` and root `root_mm`.
+    pub fn markers_at(&self, local: &[Quat], root_mm: Vec3) -> Vec<Option<Vec3>> {
+        let pose = forward_kinematics(&self.skeleton, local, root_mm);
         let on = |j: usize, o: &Vec3| self.lab * (pose.positions_mm[j] + pose.rotations[j] * o);
         self.attachments
             .iter()
@@ -141,6 +293,56 @@ pub struct IkConfig {
     /// speed it had when it vanished, for as long as it stays hidden; decaying, it comes to
     /// rest like the Kalman tracks of unseen markers.
     pub velocity_time_constant_s: f64,
+    /// Weight of the rotation-vector components along no axis of a joint with
+    /// [`JointDofs::Axes`], per rad^2 (the limit term's weight is `limits`).
+    pub locked: f64,
+    /// Pull of every non-root joint towards its rest orientation, per rad^2: holds joints the
+    /// markers do not see (fingers, toes) in place (0: none, the paper's energy).
+    pub rest: f64,
+    /// Observed markers further than this from the model (mm) count linearly, not squared
+    /// (Huber): a mislabeled or stray marker cannot drag the pose. 0: plain squares.
+    pub huber_mm: f64,
+    /// How the energy is minimised.
+    pub optimizer: Optimizer,
+    /// Re-base the root rotation after every frame (a subject turning round and round).
+    pub rebase_root: bool,
+    /// The limit term bounds the root's rotation too (the paper's energy; a kinematic solver
+    /// lets the subject face any way).
+    pub root_limited: bool,
+}
+
+/// The minimiser of the pose energy.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Optimizer {
+    /// BFGS with central-difference gradients (the paper's choice, the labeler's).
+    Bfgs,
+    /// Levenberg-Marquardt on the residuals with an analytic Jacobian.
+    LevenbergMarquardt,
+}
+
+impl IkConfig {
+    /// The weights of a kinematic solver, where the markers are the data and the pose is the
+    /// answer (not the labeler's estimate of hidden markers): the observed term dominates,
+    /// smoothness and rest pull only where the markers leave the pose free, limits are stiff,
+    /// outliers are robust (Huber at 20 mm), Levenberg-Marquardt.
+    pub fn kinematic() -> IkConfig {
+        IkConfig {
+            observed: 1.0,
+            predicted: 0.0,
+            smooth: 10.0,
+            limits: 1e4,
+            limit_deg: 170.0,
+            iterations: 12,
+            first_iterations: 200,
+            velocity_time_constant_s: 0.3,
+            locked: 10.0,
+            rest: 0.01,
+            huber_mm: 20.0,
+            optimizer: Optimizer::LevenbergMarquardt,
+            rebase_root: true,
+            root_limited: false,
+        }
+    }
 }
 
 impl Default for IkConfig {
@@ -154,6 +356,12 @@ impl Default for IkConfig {
             iterations: 5,
             first_iterations: 200,
             velocity_time_constant_s: 0.3,
+            locked: 10.0,
+            rest: 0.0,
+            huber_mm: 0.0,
+            optimizer: Optimizer::Bfgs,
+            rebase_root: false,
+            root_limited: true,
         }
     }
 }
@@ -169,16 +377,21 @@ struct PoseProblem<'a> {
     history: Option<(&'a [f64], &'a [f64])>,
     /// Per-frame decay of the pose velocity the smoothness term expects.
     damping: f64,
+    /// Per joint, the directions its axes do not allow ([`locked_directions`]).
+    locked: &'a [Vec<Vec3>],
 }
 
 impl PoseProblem<'_> {
     fn energy(&self, theta: &[f64]) -> f64 {
         let markers = self.model.markers_mm(theta);
         let (mut observed, mut predicted) = (0.0, 0.0);
+        let huber = self.config.huber_mm / DISTANCE_UNIT_MM;
         for (i, m) in markers.iter().enumerate() {
             let Some(m) = m else { continue };
             if let Some(o) = self.observed[i] {
-                observed += (m - o).norm_squared() / (DISTANCE_UNIT_MM * DISTANCE_UNIT_MM);
+                let d2 = (m - o).norm_squared() / (DISTANCE_UNIT_MM * DISTANCE_UNIT_MM);
+                observed +=
+                    if huber > 0.0 && d2 > huber * huber { 2.0 * huber * d2.sqrt() - huber * huber } else { d2 };
             } else if let Some((v, variance)) = self.predicted[i] {
                 predicted += (m - v).norm_squared() / variance.max(PREDICTION_FLOOR_MM * PREDICTION_FLOOR_MM);
             }
@@ -190,15 +403,234 @@ impl PoseProblem<'_> {
             None => 0.0,
         };
         let limit = self.config.limit_deg.to_radians();
+        let (mut locked, mut rest) = (0.0, 0.0);
         let limits: f64 = theta[3..]
             .chunks(3)
-            .map(|v| ((v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt() - limit).max(0.0).powi(2))
+            .zip(&self.model.moving)
+            .map(|(v, &j)| match &self.model.dofs[j] {
+                JointDofs::Axes(axes) if j != 0 => {
+                    let v = Vec3::new(v[0], v[1], v[2]);
+                    locked += self.locked[j].iter().map(|c| c.dot(&v).powi(2)).sum::<f64>();
+                    rest += v.norm_squared();
+                    axes.iter().map(|a| axis_excess(a, &v).powi(2)).sum::<f64>()
+                }
+                _ if j == 0 && !self.config.root_limited => 0.0,
+                _ => {
+                    if j != 0 {
+                        rest += v[0] * v[0] + v[1] * v[1] + v[2] * v[2];
+                    }
+                    ((v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt() - limit).max(0.0).powi(2)
+                }
+            })
             .sum();
-        self.config.observed * observed
+        let mut energy = self.config.observed * observed
             + self.config.predicted * predicted
             + self.config.smooth * smooth
-            + self.config.limits * limits
+            + self.config.limits * limits;
+        // Only where set, so the paper's energy is computed exactly as before.
+        if locked > 0.0 {
+            energy += self.config.limits * self.config.locked * locked;
+        }
+        if self.config.rest > 0.0 {
+            energy += self.config.rest * rest;
+        }
+        energy
     }
+
+    /// The energy as residuals `r` (`energy = |r|^2` without the Huber loss; with it, the
+    /// observed residuals are reweighted at `theta`) and their Jacobian.
+    fn linearize(&self, theta: &[f64]) -> (DVector<f64>, DMatrix<f64>) {
+        let model = self.model;
+        let n = theta.len();
+        let (local, root) = model.pose(theta);
+        let pose = forward_kinematics(&model.skeleton, &local, root);
+        let lab = model.lab.to_rotation_matrix().into_inner();
+        // Parameter block of each joint's rotation vector, and the lab-frame derivative of a
+        // point's motion by that rotation: `lab * -[p - P_a]x * G_a * J_r(v_a)`.
+        let mut block = vec![None; model.skeleton.len()];
+        let mut g_jr = vec![Matrix3::zeros(); model.skeleton.len()];
+        for (k, &j) in model.moving.iter().enumerate() {
+            block[j] = Some(3 + 3 * k);
+            let v = Vec3::new(theta[3 + 3 * k], theta[4 + 3 * k], theta[5 + 3 * k]);
+            g_jr[j] = pose.rotations[j].to_rotation_matrix().into_inner() * right_jacobian(&v);
+        }
+        let rows_markers = 3 * model.attachments.len();
+        // Rows: 3 per marker, 1 per parameter (smoothness), 9 per moving joint (3 limit rows,
+        // 3 locked directions, 3 rest).
+        let rows = rows_markers + n + 9 * model.moving.len();
+        let mut r = DVector::zeros(rows);
+        let mut jac = DMatrix::zeros(rows, n);
+        let on = |j: usize, o: &Vec3| pose.positions_mm[j] + pose.rotations[j] * o;
+        // d(lab p)/d(theta) for a point p riding on joint j, scaled by `w`, into `jac`'s rows.
+        let chain = |jac: &mut DMatrix<f64>, row: usize, j: usize, p: &Vec3, w: f64| {
+            for c in 0..3 {
+                for d in 0..3 {
+                    jac[(row + c, d)] += w * lab[(c, d)] * DECIMETRE_MM;
+                }
+            }
+            let mut a = Some(j);
+            while let Some(joint) = a {
+                if let Some(b) = block[joint] {
+                    let arm = p - pose.positions_mm[joint];
+                    let m = lab * -skew(&arm) * g_jr[joint] * w;
+                    let mut view = jac.view_mut((row, b), (3, 3));
+                    view += m;
+                }
+                a = model.skeleton.joints()[joint].parent;
+            }
+        };
+        let huber = self.config.huber_mm;
+        for (i, att) in model.attachments.iter().enumerate() {
+            let Some(att) = att else { continue };
+            let (target, scale) = if let Some(o) = self.observed[i] {
+                (o, self.config.observed.sqrt() / DISTANCE_UNIT_MM)
+            } else if let Some((v, variance)) = self.predicted[i] {
+                (v, self.config.predicted.sqrt() / variance.max(PREDICTION_FLOOR_MM * PREDICTION_FLOOR_MM).sqrt())
+            } else {
+                continue;
+            };
+            let p = on(att.joint, &att.offset_mm);
+            let (m, blend) = match &att.blend {
+                Some((j, w, o)) => {
+                    let q = on(*j, o);
+                    (p * (1.0 - w) + q * *w, Some((*j, *w, q)))
+                }
+                None => (p, None),
+            };
+            let m_lab = model.lab * m;
+            let mut w = scale;
+            if self.observed[i].is_some() && huber > 0.0 {
+                let d = (m_lab - target).norm();
+                if d > huber {
+                    // IRLS weight of the Huber loss: rho(d) = 2 h d - h^2 has rho'(d)/(2d) = h/d.
+                    w *= (huber / d).sqrt();
+                }
+            }
+            let e = (m_lab - target) * w;
+            r.rows_mut(3 * i, 3).copy_from(&e);
+            match blend {
+                Some((j, bw, q)) => {
+                    chain(&mut jac, 3 * i, att.joint, &p, w * (1.0 - bw));
+                    chain(&mut jac, 3 * i, j, &q, w * bw);
+                }
+                None => chain(&mut jac, 3 * i, att.joint, &p, w),
+            }
+        }
+        if let Some((a, b)) = self.history {
+            let s = self.config.smooth.sqrt();
+            for k in 0..n {
+                r[rows_markers + k] = s * (theta[k] - a[k] - self.damping * (a[k] - b[k]));
+                jac[(rows_markers + k, k)] = s;
+            }
+        }
+        let limit = self.config.limit_deg.to_radians();
+        let l = self.config.limits.sqrt();
+        let (lk, rs) = ((self.config.limits * self.config.locked).sqrt(), self.config.rest.sqrt());
+        for (k, &j) in model.moving.iter().enumerate() {
+            let b = 3 + 3 * k;
+            let row = rows_markers + n + 9 * k;
+            let v = Vec3::new(theta[b], theta[b + 1], theta[b + 2]);
+            if j != 0 {
+                for c in 0..3 {
+                    r[row + 6 + c] = rs * v[c];
+                    jac[(row + 6 + c, b + c)] = rs;
+                }
+            }
+            match &model.dofs[j] {
+                JointDofs::Axes(axes) if j != 0 => {
+                    for (c, a) in axes.iter().enumerate() {
+                        let excess = axis_excess(a, &v);
+                        r[row + c] = l * excess;
+                        if excess != 0.0 {
+                            for d in 0..3 {
+                                jac[(row + c, b + d)] = l * a.axis[d];
+                            }
+                        }
+                    }
+                    for (c, dir) in self.locked[j].iter().enumerate() {
+                        r[row + 3 + c] = lk * dir.dot(&v);
+                        for d in 0..3 {
+                            jac[(row + 3 + c, b + d)] = lk * dir[d];
+                        }
+                    }
+                }
+                _ if j == 0 && !self.config.root_limited => {}
+                _ => {
+                    let norm = v.norm();
+                    if norm > limit {
+                        r[row] = l * (norm - limit);
+                        for d in 0..3 {
+                            jac[(row, b + d)] = l * v[d] / norm;
+                        }
+                    }
+                }
+            }
+        }
+        (r, jac)
+    }
+}
+
+/// How far the rotation vector `v`'s component along `a` lies outside its range (signed, rad).
+fn axis_excess(a: &DofAxis, v: &Vec3) -> f64 {
+    let x = a.axis.dot(v);
+    (x - a.max_rad).max(0.0) + (x - a.min_rad).min(0.0)
+}
+
+/// `[v]x`: the cross-product matrix.
+fn skew(v: &Vec3) -> Matrix3<f64> {
+    Matrix3::new(0.0, -v.z, v.y, v.z, 0.0, -v.x, -v.y, v.x, 0.0)
+}
+
+/// The right Jacobian of the exponential map at `v`: `exp(v + d) = exp(v) exp(J_r(v) d)` to
+/// first order.
+fn right_jacobian(v: &Vec3) -> Matrix3<f64> {
+    let t2 = v.norm_squared();
+    let k = skew(v);
+    if t2 < 1e-12 {
+        return Matrix3::identity() - k * 0.5;
+    }
+    let t = t2.sqrt();
+    Matrix3::identity() - k * ((1.0 - t.cos()) / t2) + k * k * ((t - t.sin()) / (t2 * t))
+}
+
+/// Levenberg-Marquardt from `start`: at most `iterations` accepted steps, each kept only if it
+/// lowers the energy.
+fn levenberg_marquardt(problem: &PoseProblem, start: Vec<f64>, iterations: u64) -> Vec<f64> {
+    let mut theta = start;
+    let mut energy = problem.energy(&theta);
+    let mut damping = 1e-3;
+    for _ in 0..iterations {
+        let (r, jac) = problem.linearize(&theta);
+        let jt = jac.transpose();
+        let h = &jt * &jac;
+        let g = &jt * &r;
+        let mut accepted = false;
+        for _ in 0..8 {
+            let mut a = h.clone();
+            for k in 0..a.nrows() {
+                a[(k, k)] += damping * (h[(k, k)] + 1e-6);
+            }
+            let Some(step) = a.cholesky().map(|c| c.solve(&(-&g))) else {
+                damping *= 10.0;
+                continue;
+            };
+            let next: Vec<f64> = theta.iter().zip(step.iter()).map(|(t, s)| t + s).collect();
+            let e = problem.energy(&next);
+            if e.is_finite() && e < energy {
+                let small = step.norm() < 1e-7;
+                theta = next;
+                energy = e;
+                damping = (damping / 3.0).max(1e-9);
+                accepted = !small;
+                break;
+            }
+            damping *= 4.0;
+        }
+        if !accepted {
+            break;
+        }
+    }
+    theta
 }
 
 impl CostFunction for PoseProblem<'_> {
@@ -237,13 +669,23 @@ pub struct PoseTracker {
     /// Poses of the last two frames, newest first.
     history: Vec<Vec<f64>>,
     damping: f64,
+    /// Per joint, the rotation directions its axes do not allow.
+    locked: Vec<Vec<Vec3>>,
 }
 
 impl PoseTracker {
     /// A tracker for `model` on a take recorded at `frame_rate_hz`.
     pub fn new(model: MarkerModel, config: IkConfig, frame_rate_hz: f64) -> PoseTracker {
         let damping = (-1.0 / (frame_rate_hz * config.velocity_time_constant_s)).exp();
-        PoseTracker { model, config, history: Vec::new(), damping }
+        let locked = model
+            .dofs
+            .iter()
+            .map(|d| match d {
+                JointDofs::Free => Vec::new(),
+                JointDofs::Axes(axes) => locked_directions(axes),
+            })
+            .collect();
+        PoseTracker { model, config, history: Vec::new(), damping, locked }
     }
 
     /// The marker model.
@@ -254,6 +696,22 @@ impl PoseTracker {
     /// Fits this frame's pose to the `observed` markers (mm) and the Kalman `predicted`
     /// positions with variances of the others; returns the model's marker positions.
     pub fn fit(&mut self, observed: &[Option<Vec3>], predicted: &[Option<(Vec3, f64)>]) -> Vec<Option<Vec3>> {
+        let theta = self.fit_theta(observed, predicted);
+        let markers = self.model.markers_mm(&theta);
+        self.push(theta);
+        markers
+    }
+
+    /// As [`PoseTracker::fit`], returning the fitted pose: local rotations (one per joint) and
+    /// root position (mm), in the skeleton's frame.
+    pub fn fit_pose(&mut self, observed: &[Option<Vec3>], predicted: &[Option<(Vec3, f64)>]) -> (Vec<Quat>, Vec3) {
+        let theta = self.fit_theta(observed, predicted);
+        let pose = self.model.pose(&theta);
+        self.push(theta);
+        pose
+    }
+
+    fn fit_theta(&self, observed: &[Option<Vec3>], predicted: &[Option<(Vec3, f64)>]) -> Vec<f64> {
         let n = self.model.parameter_count();
         let first = self.history.is_empty();
         let start = match self.history.len() {
@@ -270,21 +728,58 @@ impl PoseTracker {
             predicted,
             history,
             damping: self.damping,
+            locked: &self.locked,
         };
         let iterations = if first { self.config.first_iterations } else { self.config.iterations };
+        if self.config.optimizer == Optimizer::LevenbergMarquardt {
+            return levenberg_marquardt(&problem, start, iterations);
+        }
         let identity: Vec<Vec<f64>> =
             (0..n).map(|i| (0..n).map(|j| if i == j { 1e-3 } else { 0.0 }).collect()).collect();
         let solver = BFGS::new(MoreThuenteLineSearch::new());
-        let theta = Executor::new(problem, solver)
+        Executor::new(problem, solver)
             .configure(|state| state.param(start.clone()).inv_hessian(identity).max_iters(iterations))
             .run()
             .ok()
             .and_then(|result| result.state().get_best_param().cloned())
-            .unwrap_or(start);
-        let markers = self.model.markers_mm(&theta);
+            .unwrap_or(start)
+    }
+
+    /// Records the pose of the frame just fitted; re-bases the root rotation when asked.
+    fn push(&mut self, theta: Vec<f64>) {
         self.history.insert(0, theta);
         self.history.truncate(2);
-        markers
+        if !(self.config.rebase_root && self.model.moving.first() == Some(&0)) {
+            return;
+        }
+        let v = Vec3::new(self.history[0][3], self.history[0][4], self.history[0][5]);
+        if v.norm() < 1.0 {
+            return;
+        }
+        // The same rotations, expressed from a new base: the newest root vector becomes 0.
+        let old = self.model.root_base;
+        let base = old * Quat::from_scaled_axis(v);
+        for h in &mut self.history {
+            let r = base.inverse() * old * Quat::from_scaled_axis(Vec3::new(h[3], h[4], h[5]));
+            let w = r.scaled_axis();
+            h[3..6].copy_from_slice(&[w.x, w.y, w.z]);
+        }
+        self.model.root_base = base;
+    }
+
+    /// Starts the next frame from the pose `local`, `root_mm` (as [`PoseTracker::fit_pose`]
+    /// returns it), without a motion history: a fit of a lone frame near a known pose.
+    pub fn start_from(&mut self, local: &[Quat], root_mm: Vec3) {
+        self.model.root_base = Quat::identity();
+        let mut theta = vec![0.0; self.model.parameter_count()];
+        for (k, &j) in self.model.moving.iter().enumerate() {
+            let v = local[j].scaled_axis();
+            theta[3 + 3 * k..6 + 3 * k].copy_from_slice(&[v.x, v.y, v.z]);
+        }
+        for c in 0..3 {
+            theta[c] = root_mm[c] / DECIMETRE_MM;
+        }
+        self.history = vec![theta];
     }
 
     /// The rest pose turned and moved onto the observed markers (rigid fit of the rest pose's
@@ -320,6 +815,393 @@ impl PoseTracker {
     /// Forgets the motion so far (a new take).
     pub fn reset(&mut self) {
         self.history.clear();
+        self.model.root_base = Quat::identity();
+    }
+}
+
+/// Settings of [`solve_sequence`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SequenceConfig {
+    /// The per-frame fit ([`IkConfig::kinematic`] by default).
+    pub ik: IkConfig,
+    /// Frames the subject calibration fits lengths and offsets on, spread over the take
+    /// (0: no calibration, the model as given).
+    pub calibration_frames: usize,
+    /// Rounds of calibration (poses, then lengths and offsets); the first fits one overall
+    /// scale, the others each bone's length and each marker's offset.
+    pub calibration_rounds: usize,
+    /// Pull of a bone's length scale towards 1 (after the overall scale): mm of residual per
+    /// unit of scale, per calibration frame (10% costs as much as `0.1 x` this on one marker
+    /// in every frame).
+    pub bone_prior_mm: f64,
+    /// Pull of a marker's offset towards the template's: residual per mm of offset change, per
+    /// calibration frame.
+    pub offset_prior: f64,
+    /// Calibration samples further than this from the posed model (mm) are left out (stray or
+    /// swapped markers).
+    pub calibration_outlier_mm: f64,
+    /// Frame rate (Hz) of the first, calibration-pose pass over the take (every k-th frame).
+    pub first_pass_hz: f64,
+}
+
+impl Default for SequenceConfig {
+    fn default() -> SequenceConfig {
+        SequenceConfig {
+            ik: IkConfig::kinematic(),
+            calibration_frames: 40,
+            calibration_rounds: 4,
+            bone_prior_mm: 200.0,
+            offset_prior: 0.3,
+            calibration_outlier_mm: 60.0,
+            first_pass_hz: 30.0,
+        }
+    }
+}
+
+/// A take solved by [`solve_sequence`].
+#[derive(Debug, Clone)]
+pub struct SequenceFit {
+    /// The calibrated model (bone lengths and marker offsets of this subject).
+    pub model: MarkerModel,
+    /// Per frame: local rotations (one per joint) and root position (mm, skeleton frame).
+    pub poses: Vec<(Vec<Quat>, Vec3)>,
+    /// The overall scale the calibration found (1: the template's size).
+    pub scale: f64,
+    /// Per joint: its offset's scale relative to the template (overall scale included).
+    pub bone_scales: Vec<f64>,
+    /// RMS distance (mm) of the observed markers from the model on the calibration frames,
+    /// before and after calibration.
+    pub calibration_rms_mm: (f64, f64),
+    /// Per frame, RMS distance (mm) of the observed markers from the solved model (`None`:
+    /// no marker observed).
+    pub residual_rms_mm: Vec<Option<f64>>,
+}
+
+impl SequenceFit {
+    /// RMS distance (mm) of every observed marker sample from the solved model.
+    pub fn rms_mm(&self, frames: &[Vec<Option<Vec3>>]) -> f64 {
+        let (mut sum, mut n) = (0.0, 0usize);
+        for (f, (local, root)) in self.poses.iter().enumerate() {
+            for (m, o) in self.model.markers_at(local, *root).iter().zip(&frames[f]) {
+                if let (Some(m), Some(o)) = (m, o) {
+                    sum += (m - o).norm_squared();
+                    n += 1;
+                }
+            }
+        }
+        if n == 0 { f64::NAN } else { (sum / n as f64).sqrt() }
+    }
+}
+
+impl MarkerModel {
+    /// The model with joint offsets scaled per joint and the markers' offsets replaced.
+    fn resized(&self, scales: &[f64], offsets: &NewOffsets) -> MarkerModel {
+        let joints: Vec<Joint> = self
+            .skeleton
+            .joints()
+            .iter()
+            .zip(scales)
+            .map(|(j, s)| Joint { offset_mm: j.offset_mm * *s, ..j.clone() })
+            .collect();
+        let mut out = self.clone();
+        // Same names and parents: still a valid skeleton.
+        out.skeleton = Skeleton::new(joints).unwrap_or_else(|_| self.skeleton.clone());
+        for (a, o) in out.attachments.iter_mut().zip(offsets) {
+            if let (Some(a), Some((primary, blend))) = (a, o) {
+                a.offset_mm = *primary;
+                if let (Some(b), Some(o)) = (&mut a.blend, blend) {
+                    b.2 = *o;
+                }
+            }
+        }
+        out
+    }
+}
+
+/// Fits `model` to a whole take: a subject calibration on the take itself, then every frame,
+/// warm-started from the previous one (see the module docs). `frames` holds, per frame, each
+/// model marker's observed position (lab frame, mm; `None`: not seen).
+///
+/// # Errors
+/// No frames, frames of another marker count, or a frame rate that is not positive.
+pub fn solve_sequence(
+    model: MarkerModel,
+    frames: &[Vec<Option<Vec3>>],
+    frame_rate_hz: f64,
+    config: &SequenceConfig,
+) -> Result<SequenceFit, LabelError> {
+    if frames.is_empty() {
+        return Err(LabelError::Config("the take has no frames".into()));
+    }
+    if let Some(f) = frames.iter().position(|f| f.len() != model.marker_count()) {
+        return Err(LabelError::Config(format!(
+            "frame {f} has {} markers, the model {}",
+            frames[f].len(),
+            model.marker_count()
+        )));
+    }
+    if !(frame_rate_hz.is_finite() && frame_rate_hz > 0.0) {
+        return Err(LabelError::Config(format!("frame rate {frame_rate_hz} Hz is not positive")));
+    }
+    let mut model = model;
+    let joints = model.skeleton.len();
+    let mut bone_scales = vec![1.0; joints];
+    let mut scale = 1.0;
+    let mut calibration_rms_mm = (f64::NAN, f64::NAN);
+    let chosen = calibration_frames(frames, config.calibration_frames);
+    if !chosen.is_empty() && config.calibration_rounds > 0 {
+        // Poses of the chosen frames from a pass over the take at a lower rate.
+        let stride = ((frame_rate_hz / config.first_pass_hz).round() as usize).max(1);
+        let mut tracker = PoseTracker::new(model.clone(), config.ik, frame_rate_hz / stride as f64);
+        let mut poses = Vec::with_capacity(chosen.len());
+        let mut next = 0;
+        for f in (0..frames.len()).step_by(stride) {
+            let pose = tracker.fit_pose(&frames[f], &vec![None; frames[f].len()]);
+            while next < chosen.len() && chosen[next] < f + stride {
+                poses.push(pose.clone());
+                next += 1;
+            }
+        }
+        let mut refit = IkConfig { iterations: 30, ..config.ik };
+        let chosen_frames: Vec<&[Option<Vec3>]> = chosen.iter().map(|&f| frames[f].as_slice()).collect();
+        poses = refit_poses(&model, refit, &chosen_frames, &poses);
+        calibration_rms_mm.0 = rms_of(&model, &poses, &chosen_frames);
+        for round in 0..config.calibration_rounds {
+            let per_bone = round > 0;
+            let (s, offsets) = calibrate_linear(&model, &poses, &chosen_frames, per_bone, config);
+            model = model.resized(&s, &offsets);
+            for (b, x) in bone_scales.iter_mut().zip(&s) {
+                *b *= x;
+            }
+            if !per_bone {
+                scale = s.get(1).copied().unwrap_or(1.0);
+            }
+            refit.iterations = 20;
+            poses = refit_poses(&model, refit, &chosen_frames, &poses);
+        }
+        calibration_rms_mm.1 = rms_of(&model, &poses, &chosen_frames);
+    }
+    let mut tracker = PoseTracker::new(model.clone(), config.ik, frame_rate_hz);
+    let mut poses = Vec::with_capacity(frames.len());
+    let mut residual_rms_mm = Vec::with_capacity(frames.len());
+    for frame in frames {
+        let (local, root) = tracker.fit_pose(frame, &vec![None; frame.len()]);
+        residual_rms_mm.push(frame_rms(&model, &local, root, frame));
+        poses.push((local, root));
+    }
+    Ok(SequenceFit { model, poses, scale, bone_scales, calibration_rms_mm, residual_rms_mm })
+}
+
+/// Up to `count` frames spread evenly over those that see at least 70% of the markers (or,
+/// if none does, over the frames that see the most).
+fn calibration_frames(frames: &[Vec<Option<Vec3>>], count: usize) -> Vec<usize> {
+    if count == 0 {
+        return Vec::new();
+    }
+    let seen: Vec<usize> = frames.iter().map(|f| f.iter().flatten().count()).collect();
+    let most = seen.iter().copied().max().unwrap_or(0);
+    let m = frames[0].len();
+    let need = if most * 10 >= m * 7 { (m * 7).div_ceil(10) } else { most };
+    if need < 3 {
+        return Vec::new();
+    }
+    let good: Vec<usize> = (0..frames.len()).filter(|&f| seen[f] >= need).collect();
+    let k = count.min(good.len());
+    (0..k).map(|i| good[i * good.len() / k]).collect()
+}
+
+fn frame_rms(model: &MarkerModel, local: &[Quat], root: Vec3, observed: &[Option<Vec3>]) -> Option<f64> {
+    let (mut sum, mut n) = (0.0, 0usize);
+    for (m, o) in model.markers_at(local, root).iter().zip(observed) {
+        if let (Some(m), Some(o)) = (m, o) {
+            sum += (m - o).norm_squared();
+            n += 1;
+        }
+    }
+    (n > 0).then(|| (sum / n as f64).sqrt())
+}
+
+fn rms_of(model: &MarkerModel, poses: &[(Vec<Quat>, Vec3)], frames: &[&[Option<Vec3>]]) -> f64 {
+    let (mut sum, mut n) = (0.0, 0.0);
+    for ((local, root), frame) in poses.iter().zip(frames) {
+        if let Some(r) = frame_rms(model, local, *root, frame) {
+            let k = frame.iter().flatten().count() as f64;
+            sum += r * r * k;
+            n += k;
+        }
+    }
+    if n > 0.0 { (sum / n).sqrt() } else { f64::NAN }
+}
+
+/// Each frame's pose refitted alone from its previous pose (no smoothness).
+fn refit_poses(
+    model: &MarkerModel,
+    config: IkConfig,
+    frames: &[&[Option<Vec3>]],
+    poses: &[(Vec<Quat>, Vec3)],
+) -> Vec<(Vec<Quat>, Vec3)> {
+    let mut tracker = PoseTracker::new(model.clone(), config, 1.0);
+    frames
+        .iter()
+        .zip(poses)
+        .map(|(frame, (local, root))| {
+            tracker.start_from(local, *root);
+            tracker.fit_pose(frame, &vec![None; frame.len()])
+        })
+        .collect()
+}
+
+/// Per marker, its offset on its joint and, for a blended marker, on the second joint (mm).
+type NewOffsets = Vec<Option<(Vec3, Option<Vec3>)>>;
+
+/// The calibration's linear least squares: with every frame's rotations fixed, each marker is
+/// `root + sum_b s_b G_parent(b) offset_b + G_j o` (skeleton frame), linear in the roots, the
+/// bone scales `s_b` and the offsets `o`. `per_bone`: one scale per bone and the offsets, with
+/// priors; else one overall scale of bones and offsets together. Returns the per-joint scales
+/// and the new offsets (primary, blend) per marker.
+fn calibrate_linear(
+    model: &MarkerModel,
+    poses: &[(Vec<Quat>, Vec3)],
+    frames: &[&[Option<Vec3>]],
+    per_bone: bool,
+    config: &SequenceConfig,
+) -> (Vec<f64>, NewOffsets) {
+    let sk = &model.skeleton;
+    let joints = sk.len();
+    let k = poses.len();
+    let unchanged: NewOffsets =
+        model.attachments.iter().map(|a| a.as_ref().map(|a| (a.offset_mm, a.blend.map(|b| b.2)))).collect();
+    // Unknowns: roots (3 per frame), then scales, then offsets (3 per attached marker).
+    let scaled: Vec<Option<usize>> = {
+        let mut next = 3 * k;
+        (0..joints)
+            .map(|j| {
+                let bone = j > 0 && sk.joints()[j].offset_mm.norm() > 1.0;
+                match (bone, per_bone) {
+                    (true, true) => {
+                        next += 1;
+                        Some(next - 1)
+                    }
+                    (true, false) => Some(3 * k),
+                    _ => None,
+                }
+            })
+            .collect()
+    };
+    let first_offset = 3 * k + if per_bone { scaled.iter().flatten().count() } else { 1 };
+    let offset_of: Vec<Option<usize>> = {
+        let mut next = first_offset;
+        model
+            .attachments
+            .iter()
+            .map(|a| {
+                (per_bone && a.is_some()).then(|| {
+                    next += 3;
+                    next - 3
+                })
+            })
+            .collect()
+    };
+    let n = first_offset + 3 * offset_of.iter().flatten().count();
+    let mut a = DMatrix::<f64>::zeros(n, n);
+    let mut b = DVector::<f64>::zeros(n);
+    let add_row = |coeffs: &[(usize, f64)], rhs: f64, a: &mut DMatrix<f64>, b: &mut DVector<f64>| {
+        for &(i, x) in coeffs {
+            b[i] += x * rhs;
+            for &(j, y) in coeffs {
+                a[(i, j)] += x * y;
+            }
+        }
+    };
+    let lab_inv = model.lab.inverse();
+    let cutoff = config.calibration_outlier_mm;
+    for (f, ((local, root), frame)) in poses.iter().zip(frames).enumerate() {
+        let pose = forward_kinematics(sk, local, *root);
+        let current = model.markers_at(local, *root);
+        for (i, att) in model.attachments.iter().enumerate() {
+            let (Some(att), Some(o), Some(now)) = (att, frame[i], current[i]) else { continue };
+            if (now - o).norm() > cutoff {
+                continue;
+            }
+            let target = lab_inv * o;
+            // Each part of the marker: (weight, joint, offset in its frame, offset unknown?).
+            let mut parts = vec![(1.0, att.joint, att.offset_mm, true)];
+            if let Some((j, w, off)) = att.blend {
+                parts[0].0 = 1.0 - w;
+                parts.push((w, j, off, false));
+            }
+            for c in 0..3 {
+                let mut coeffs: Vec<(usize, f64)> = vec![(3 * f + c, 1.0)];
+                let mut rhs = target[c];
+                for &(w, j, off, primary) in &parts {
+                    // The chain of bones from the root to j.
+                    let mut joint = j;
+                    while let Some(parent) = sk.joints()[joint].parent {
+                        let x = w * (pose.rotations[parent] * sk.joints()[joint].offset_mm)[c];
+                        match scaled[joint] {
+                            Some(col) => coeffs.push((col, x)),
+                            None => rhs -= x,
+                        }
+                        joint = parent;
+                    }
+                    let g = pose.rotations[j].to_rotation_matrix().into_inner();
+                    match (primary, offset_of[i]) {
+                        (true, Some(col)) => {
+                            for d in 0..3 {
+                                coeffs.push((col + d, w * g[(c, d)]));
+                            }
+                        }
+                        // The overall scale scales the offsets too.
+                        _ if !per_bone => coeffs.push((3 * k, w * (g * off)[c])),
+                        _ => rhs -= w * (g * off)[c],
+                    }
+                }
+                add_row(&coeffs, rhs, &mut a, &mut b);
+            }
+        }
+    }
+    let root_k = (k as f64).sqrt();
+    if per_bone {
+        let w = config.bone_prior_mm * root_k;
+        for col in scaled.iter().flatten() {
+            add_row(&[(*col, w)], w, &mut a, &mut b);
+        }
+        let w = config.offset_prior * root_k;
+        for (i, col) in offset_of.iter().enumerate() {
+            let (Some(col), Some(att)) = (col, &model.attachments[i]) else { continue };
+            for d in 0..3 {
+                add_row(&[(col + d, w)], w * att.offset_mm[d], &mut a, &mut b);
+            }
+        }
+    }
+    // A tiny ridge keeps roots of frames without markers (and unseen bones) determined.
+    for i in 0..n {
+        a[(i, i)] += 1e-9;
+    }
+    let Some(x) = a.cholesky().map(|c| c.solve(&b)) else {
+        return (vec![1.0; joints], unchanged);
+    };
+    let sane = |s: f64| s.is_finite() && (0.5..2.0).contains(&s);
+    let scales: Vec<f64> = scaled.iter().map(|c| c.map_or(1.0, |c| if sane(x[c]) { x[c] } else { 1.0 })).collect();
+    if per_bone {
+        let offsets = model
+            .attachments
+            .iter()
+            .zip(&offset_of)
+            .map(|(att, col)| {
+                let att = att.as_ref()?;
+                let o = col.map_or(att.offset_mm, |c| Vec3::new(x[c], x[c + 1], x[c + 2]));
+                let ok = o.iter().all(|v| v.is_finite()) && (o - att.offset_mm).norm() < 200.0;
+                Some((if ok { o } else { att.offset_mm }, att.blend.map(|b| b.2)))
+            })
+            .collect();
+        (scales, offsets)
+    } else {
+        let s = if sane(x[3 * k]) { x[3 * k] } else { 1.0 };
+        let mut all = vec![s; joints];
+        all[0] = 1.0;
+        let offsets = unchanged.iter().map(|o| o.map(|(p, bl)| (p * s, bl.map(|v| v * s)))).collect();
+        (all, offsets)
     }
 }
 
@@ -408,6 +1290,155 @@ pub(crate) mod tests {
             let e = (f.unwrap() - t.unwrap()).norm();
             assert!(e < 5.0, "off by {e} mm");
         }
+    }
+
+    /// The arm with the forearm hinged about z within [0, 2] rad and the upper arm free.
+    fn hinged_arm() -> MarkerModel {
+        let hinge = JointDofs::Axes(vec![DofAxis { axis: Vec3::z(), min_rad: 0.0, max_rad: 2.0 }]);
+        arm_model().with_dofs(vec![JointDofs::Free, JointDofs::Free, hinge, JointDofs::Free]).unwrap()
+    }
+
+    fn problem<'a>(
+        model: &'a MarkerModel,
+        config: &'a IkConfig,
+        observed: &'a [Option<Vec3>],
+        predicted: &'a [Option<(Vec3, f64)>],
+        history: Option<(&'a [f64], &'a [f64])>,
+        locked: &'a [Vec<Vec3>],
+    ) -> PoseProblem<'a> {
+        PoseProblem { model, config, observed, predicted, history, damping: 0.9, locked }
+    }
+
+    #[test]
+    fn residuals_are_the_energy_and_the_jacobian_its_derivative() {
+        let model = hinged_arm().in_lab(MarkerModel::y_up_in_z_up_lab());
+        let tracker = PoseTracker::new(model.clone(), IkConfig::default(), 60.0);
+        let config = IkConfig { rest: 0.3, limit_deg: 20.0, predicted: 0.2, ..IkConfig::kinematic() };
+        let config = IkConfig { huber_mm: 0.0, ..config };
+        let mut theta = arm_pose(&model, 0.7);
+        theta[3..6].copy_from_slice(&[0.3, -0.2, 0.5]);
+        theta[9..12].copy_from_slice(&[0.2, 0.1, -0.4]); // forearm: off its axis and below its range
+        let truth = model.markers_mm(&arm_pose(&model, 0.2));
+        let observed: Vec<Option<Vec3>> =
+            truth.iter().enumerate().map(|(i, p)| if i == 4 { None } else { *p }).collect();
+        let mut predicted = vec![None; truth.len()];
+        predicted[4] = Some((truth[4].unwrap() + Vec3::new(3.0, 0.0, 0.0), 900.0));
+        let (a, b) = (arm_pose(&model, 0.6), arm_pose(&model, 0.5));
+        let p = problem(&model, &config, &observed, &predicted, Some((&a, &b)), &tracker.locked);
+        let (r, jac) = p.linearize(&theta);
+        let energy = p.energy(&theta);
+        assert!((r.norm_squared() - energy).abs() < 1e-9 * energy.max(1.0), "{} vs {energy}", r.norm_squared());
+        for k in 0..theta.len() {
+            let h = 1e-6;
+            let (mut up, mut down) = (theta.clone(), theta.clone());
+            up[k] += h;
+            down[k] -= h;
+            let numeric = (p.linearize(&up).0 - p.linearize(&down).0) / (2.0 * h);
+            let analytic = jac.column(k);
+            let err = (numeric - analytic).norm();
+            assert!(err < 1e-4 * analytic.norm().max(1.0), "parameter {k}: {err}");
+        }
+    }
+
+    #[test]
+    fn levenberg_marquardt_recovers_a_known_pose_in_a_turned_lab() {
+        let model = hinged_arm().in_lab(MarkerModel::y_up_in_z_up_lab());
+        let mut theta = arm_pose(&model, 0.8);
+        theta[3..6].copy_from_slice(&[0.4, 2.0, -0.3]);
+        let truth = model.markers_mm(&theta);
+        let mut tracker = PoseTracker::new(model.clone(), IkConfig::kinematic(), 60.0);
+        let (local, root) = tracker.fit_pose(&truth, &vec![None; truth.len()]);
+        let (want, want_root) = model.pose(&theta);
+        assert!((root - want_root).norm() < 0.1, "root {root} vs {want_root}");
+        for (j, (q, t)) in local.iter().zip(&want).enumerate().take(3) {
+            assert!(q.angle_to(t).to_degrees() < 0.1, "joint {j}: {} deg", q.angle_to(t).to_degrees());
+        }
+    }
+
+    #[test]
+    fn joint_limits_hold_against_the_markers() {
+        let model = hinged_arm();
+        // Markers of an elbow bent the wrong way (-0.6 rad) and twisted off the hinge.
+        let mut theta = arm_pose(&model, 0.0);
+        theta[9..12].copy_from_slice(&[0.3, 0.0, -0.6]);
+        let free = arm_model();
+        let truth = free.markers_mm(&theta);
+        let mut tracker = PoseTracker::new(model.clone(), IkConfig::kinematic(), 60.0);
+        let (local, _) = tracker.fit_pose(&truth, &vec![None; truth.len()]);
+        let v = local[2].scaled_axis();
+        assert!(v.z > -0.02 && v.x.abs() < 0.02 && v.y.abs() < 0.02, "forearm {v}");
+    }
+
+    /// A synthetic take of the arm: the subject 10% larger than the template, markers placed
+    /// 8 mm off the template's, the root turning round three times.
+    /// Per frame, each marker's position.
+    type Frames = Vec<Vec<Option<Vec3>>>;
+
+    fn subject_take(model: &MarkerModel, frames: usize) -> (MarkerModel, Frames, Vec<Vec<f64>>) {
+        let joints: Vec<Joint> =
+            model.skeleton.joints().iter().map(|j| Joint { offset_mm: j.offset_mm * 1.1, ..j.clone() }).collect();
+        let mut subject = model.clone();
+        subject.skeleton = Skeleton::new(joints).unwrap();
+        for (i, a) in subject.attachments.iter_mut().flatten().enumerate() {
+            a.offset_mm = a.offset_mm * 1.1 + Vec3::new(8.0 * (i as f64).sin(), 8.0 * (i as f64).cos(), 3.0);
+        }
+        let mut poses = Vec::new();
+        let takes = (0..frames)
+            .map(|f| {
+                let t = f as f64 / frames as f64;
+                let mut theta = arm_pose(&subject, 0.5 + 0.5 * (6.0 * t).sin());
+                let turn = 3.0 * std::f64::consts::TAU * t;
+                let q = Quat::from_scaled_axis(Vec3::new(0.0, turn, 0.0))
+                    * Quat::from_scaled_axis(Vec3::new(0.3, 0.0, 0.0));
+                // The root's vector folded into [0, pi]: the tracker must follow it across.
+                let v = q.scaled_axis();
+                theta[3..6].copy_from_slice(&[v.x, v.y, v.z]);
+                // The forearm on its hinge (z), inside its range.
+                theta[9..12].copy_from_slice(&[0.0, 0.0, 0.8 + 0.5 * (5.0 * t).sin()]);
+                poses.push(theta.clone());
+                subject.markers_mm(&theta)
+            })
+            .collect();
+        (subject, takes, poses)
+    }
+
+    #[test]
+    fn a_sequence_is_calibrated_to_its_subject_and_tracked_round_and_round() {
+        let model = hinged_arm();
+        let (subject, frames, truth) = subject_take(&model, 240);
+        let fit = solve_sequence(model.clone(), &frames, 60.0, &SequenceConfig::default()).unwrap();
+        assert!((fit.scale - 1.1).abs() < 0.05, "overall scale {}", fit.scale);
+        let (before, after) = fit.calibration_rms_mm;
+        assert!(after < before && after < 2.0, "calibration {before:.1} -> {after:.2} mm");
+        let rms = fit.rms_mm(&frames);
+        let mut worst: f64 = 0.0;
+        for (f, theta) in truth.iter().enumerate() {
+            let (want, _) = subject.pose(theta);
+            let e = fit.poses[f].0[2].angle_to(&want[2]).to_degrees();
+            worst = worst.max(e);
+        }
+        assert!(rms < 2.0, "residual {rms:.2} mm");
+        // Three markers per segment fix the segment, not exactly where its joint centre is:
+        // bone length and offsets trade a little, a few degrees at the elbow.
+        assert!(worst < 5.0, "elbow off by {worst:.2} deg");
+        // Without calibration the template's size shows in the residual.
+        let plain =
+            solve_sequence(model, &frames, 60.0, &SequenceConfig { calibration_frames: 0, ..Default::default() })
+                .unwrap();
+        assert!(plain.rms_mm(&frames) > 2.0 * rms, "{} vs {rms}", plain.rms_mm(&frames));
+    }
+
+    #[test]
+    fn bad_sequences_are_errors() {
+        let model = arm_model();
+        assert!(solve_sequence(model.clone(), &[], 60.0, &SequenceConfig::default()).is_err());
+        assert!(solve_sequence(model.clone(), &[vec![None; 2]], 60.0, &SequenceConfig::default()).is_err());
+        let ok = vec![vec![None; model.marker_count()]];
+        assert!(solve_sequence(model.clone(), &ok, 0.0, &SequenceConfig::default()).is_err());
+        // A frame with no marker at all still gives a pose (the rest pose).
+        assert_eq!(solve_sequence(model, &ok, 60.0, &SequenceConfig::default()).unwrap().poses.len(), 1);
+        let two = vec![JointDofs::Free; 2];
+        assert!(arm_model().with_dofs(two).is_err());
     }
 
     #[test]

@@ -19,6 +19,8 @@
 //! * [`limits`]: the documented ceilings on network, batch and window sizes.
 //! * [`refiners`]: refiners as fillers of the clean stage (`locap_clean::Filler`).
 //! * [`shipped`]: the trained refiners and solver built into locap.
+//! * [`kinematic`]: the solver that needs no network: the labeler's IK with a subject
+//!   calibration, for any layout (the baseline the networks must beat).
 //!
 //! No module reads or writes files: training takes `Take`s and shard readers, checkpoints go
 //! to a [`harness::Checkpointer`], and reports give their loss curves as data series
@@ -27,6 +29,7 @@
 pub mod features;
 pub mod file;
 pub mod harness;
+pub mod kinematic;
 pub mod limits;
 pub mod refiner;
 pub mod refiners;
@@ -56,6 +59,9 @@ pub enum NnError {
     /// Not a model file (refiner or solver), or a damaged one.
     #[error("not a usable locap model file: {0}")]
     BadModel(String),
+    /// The kinematic solver cannot be built or run (layout, skeleton, take).
+    #[error("kinematic solver: {0}")]
+    Kinematic(String),
     /// The local frame cannot be built on the take.
     #[error(transparent)]
     LocalFrame(#[from] locap_clean::local_frame::LocalFrameError),

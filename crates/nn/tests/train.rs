@@ -73,7 +73,7 @@ fn layout() -> Layout {
             m(&format!("{s}TOE"), &j("ankle"), [0.0, -50.0, 120.0]),
         ]);
     }
-    Layout { name: "tiny".into(), description: String::new(), aliases: Default::default(), markers }
+    Layout { name: "tiny".into(), description: String::new(), aliases: Default::default(), markers, skeleton: None }
 }
 
 /// A walking-like motion: the body turns and travels on a circle, limbs swing.

@@ -459,6 +459,7 @@ pub fn hand_layout(skeleton: &Skeleton, side: Side, dorsal_mm: f64) -> Result<La
         ),
         aliases: Default::default(),
         markers,
+        skeleton: None,
     })
 }
 

@@ -30,9 +30,31 @@
 //! frame is aligned with the world (Y up) at rest, so offsets read as rest-pose displacements.
 //! A blend without `offset_mm` takes the marker's rest-pose position and expresses it in the
 //! second joint's frame.
+//!
+//! # The skeleton section (optional)
+//! A layout built from a model that brings its own skeleton (an OpenSim model, see
+//! [`crate::opensim`]) carries it, so the layout file alone is enough to solve a take:
+//!
+//! ```toml
+//! [skeleton]
+//! up_axis = "Y"             # the rest frame's vertical axis
+//! [[skeleton.joint]]
+//! name = "pelvis"           # the root: no parent
+//! offset_mm = [0.0, 0.0, 0.0]
+//! [[skeleton.joint]]
+//! name = "tibia_r"
+//! parent = "femur_r"        # parents come before their children
+//! offset_mm = [-4.5, -396.0, 0.0]   # joint centre in the parent's frame at rest, mm
+//! # Rotational degrees of freedom with their limits; no `dofs`: a free ball joint,
+//! # `dofs = []`: no rotation at all.
+//! dofs = [{ name = "knee_angle_r", axis = [0.0, 0.0, -1.0], min_deg = 0.0, max_deg = 170.0 }]
+//! ```
+//!
+//! Every joint frame is aligned with the rest frame's axes at rest (as in ASF and CMU BVH), so
+//! offsets and axes read in those axes.
 
 use locap_core::skeleton::forward_kinematics;
-use locap_core::{GlobalPose, Quat, Skeleton, Vec3};
+use locap_core::{GlobalPose, Joint, Quat, Skeleton, UpAxis, Vec3};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
@@ -55,6 +77,9 @@ pub enum LayoutError {
     /// A layout with no markers.
     #[error("the layout has no markers")]
     Empty,
+    /// The skeleton section does not make a skeleton.
+    #[error("skeleton section: {0}")]
+    Skeleton(String),
     /// A marker's joint (or one of its aliases) is not in the skeleton.
     #[error("marker {marker:?} rides on joint {joint:?}, which the skeleton does not have (nor any alias of it)")]
     UnknownJoint {
@@ -143,6 +168,81 @@ pub struct Layout {
     /// The markers, in output order.
     #[serde(rename = "marker")]
     pub markers: Vec<LayoutMarker>,
+    /// The skeleton the layout was built for, when the layout brings one (see the module docs).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub skeleton: Option<LayoutSkeleton>,
+}
+
+/// A skeleton carried in a layout file: joints by name, offsets and rotational degrees of
+/// freedom with their limits.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct LayoutSkeleton {
+    /// Vertical axis of the rest frame (joint frames are aligned with it at rest).
+    pub up_axis: UpAxis,
+    /// The joints, parents first; the first is the root.
+    #[serde(rename = "joint")]
+    pub joints: Vec<LayoutJoint>,
+}
+
+/// One joint of a [`LayoutSkeleton`].
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct LayoutJoint {
+    /// Joint name (the name markers ride on).
+    pub name: String,
+    /// Parent joint name; `None` for the root.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub parent: Option<String>,
+    /// Joint centre in the parent's frame at rest, mm.
+    pub offset_mm: [f64; 3],
+    /// Rotational degrees of freedom; `None`: a free ball joint without limits.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub dofs: Option<Vec<Dof>>,
+}
+
+/// A rotation axis of a joint and its range.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Dof {
+    /// Name of the degree of freedom (an OpenSim coordinate).
+    pub name: String,
+    /// Rotation axis in the joint's frame (aligned with the rest frame's axes), unit length.
+    pub axis: [f64; 3],
+    /// Smallest rotation about `axis`, degrees.
+    pub min_deg: f64,
+    /// Largest rotation about `axis`, degrees.
+    pub max_deg: f64,
+}
+
+impl LayoutSkeleton {
+    /// Checks names, parents and numbers; builds the [`Skeleton`] (ZXY rotation order, as CMU
+    /// BVH files write it).
+    pub fn to_skeleton(&self) -> Result<Skeleton, LayoutError> {
+        let bad = |what: String| Err(LayoutError::Skeleton(what));
+        let mut joints: Vec<Joint> = Vec::with_capacity(self.joints.len());
+        for (i, j) in self.joints.iter().enumerate() {
+            let parent = match &j.parent {
+                None => None,
+                Some(p) => match joints.iter().position(|k| k.name == *p) {
+                    Some(k) => Some(k),
+                    None => return bad(format!("joint {:?}: parent {p:?} does not come before it", j.name)),
+                },
+            };
+            if (parent.is_none()) != (i == 0) {
+                return bad(format!("joint {:?}: only the first joint is the root (has no parent)", j.name));
+            }
+            if let Some(v) = j.offset_mm.iter().find(|v| !(v.is_finite() && v.abs() <= MAX_OFFSET_MM)) {
+                return bad(format!("joint {:?}: offset_mm {v} is not a length within {MAX_OFFSET_MM} mm", j.name));
+            }
+            for d in j.dofs.iter().flatten() {
+                let norm = Vec3::from(d.axis).norm();
+                let finite = d.axis.iter().chain([&d.min_deg, &d.max_deg]).all(|v| v.is_finite());
+                if !finite || !(0.5..2.0).contains(&norm) || !(d.min_deg <= d.max_deg) {
+                    return bad(format!("joint {:?}: degree of freedom {:?} is not valid: {d:?}", j.name, d.name));
+                }
+            }
+            joints.push(Joint::new(j.name.clone(), parent, Vec3::from(j.offset_mm)));
+        }
+        Skeleton::new(joints).map_err(|e| LayoutError::Skeleton(e.to_string()))
+    }
 }
 
 impl Layout {
@@ -181,6 +281,9 @@ impl Layout {
     pub fn check(&self) -> Result<(), LayoutError> {
         if self.markers.is_empty() {
             return Err(LayoutError::Empty);
+        }
+        if let Some(skeleton) = &self.skeleton {
+            skeleton.to_skeleton()?;
         }
         let mut seen = std::collections::HashSet::new();
         for m in &self.markers {

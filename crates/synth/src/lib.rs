@@ -21,7 +21,8 @@
 //! Two more ways to get a layout or motion: [`fit`] fits a layout's offsets to a real take's
 //! marker distances when no skeleton motion exists, and [`hand`] builds hand skeleton motion
 //! from an ART hand export (fitted joint angles, plus procedural finger motion within joint
-//! limits) and the paper's hand marker layout.
+//! limits) and the paper's hand marker layout. [`opensim`] builds a layout and its skeleton (with
+//! joint limits) from an OpenSim model and marker set.
 //!
 //! This crate never touches files: it takes and returns `locap_core` types (and writes
 //! training shards to any `std::io::Write`). `locap synth`, `locap stats` and
@@ -33,6 +34,7 @@ pub mod fit;
 pub mod gap_model;
 pub mod hand;
 pub mod layout;
+pub mod opensim;
 pub mod shard;
 pub mod synthesize;
 #[cfg(test)]

@@ -22,5 +22,5 @@ pub fn marker(name: &str, joint: &str, offset_mm: [f64; 3]) -> LayoutMarker {
 
 /// A layout of `markers` without aliases.
 pub fn layout(markers: Vec<LayoutMarker>) -> Layout {
-    Layout { name: "test".into(), description: String::new(), aliases: Default::default(), markers }
+    Layout { name: "test".into(), description: String::new(), aliases: Default::default(), markers, skeleton: None }
 }

@@ -7,8 +7,12 @@
 
 use anyhow::{Context, Result};
 use clap::Parser;
-use locap_eval::solver::{MethodScores, MotionComparison, compare_motions, evaluate, gap_bin_labels, table};
+use locap_eval::solver::{
+    Method, MethodScores, MotionComparison, compare_motions, evaluate_methods, gap_bin_labels, rotation_jumps, table,
+    wrists_within,
+};
 use locap_nn::Refiner;
+use locap_nn::kinematic::KinematicSolver;
 use locap_nn::solver::Solver;
 use locap_view::plot::{Chart, Format};
 use serde::Serialize;
@@ -38,6 +42,10 @@ pub struct Args {
     /// skeleton definition as the models' (joints matched by name).
     #[arg(long, num_args = 1.., value_name = "MOTION", help_heading = "Real takes")]
     reference: Vec<PathBuf>,
+    /// Also score the kinematic solver (the CMU 41-marker layout on the shipped solver's
+    /// skeleton, calibrated on each take; no training): Table 1's optimization-based column.
+    #[arg(long, help_heading = "Input")]
+    kinematic: bool,
     /// Write the results as JSON.
     #[arg(long, value_name = "FILE", help_heading = "Output")]
     json: Option<PathBuf>,
@@ -67,6 +75,15 @@ struct RealRow {
     reference: String,
     model: String,
     comparison: MotionComparison,
+    /// Largest rotation of a joint between consecutive frames, degrees, and that joint.
+    max_jump_deg: f64,
+    max_jump_joint: String,
+    /// Frame pairs where some joint turns by more than 20 degrees.
+    jumps_over_20_deg: usize,
+    /// Share of wrist samples within 60 mm of the wrist markers, and the largest distance (mm).
+    wrists_within_60_mm: Option<(f64, f64)>,
+    /// Frames solved per second (cleaning included).
+    frames_per_s: f64,
 }
 
 fn stem(p: &Path) -> String {
@@ -115,8 +132,22 @@ pub fn run(args: Args) -> Result<ExitCode> {
     };
     let data = crate::training::solver_data(&args.data)?;
     eprintln!("evaluating {} models on {} takes, {} frames", solvers.len(), data.shards.len(), data.frames());
-    let refs: Vec<(String, &Solver)> = solvers.iter().map(|(n, s)| (n.clone(), s)).collect();
-    let scores = evaluate(&refs, &data.shards, refiner.as_ref())?;
+    let kinematic = if args.kinematic { Some(KinematicSolver::cmu41()?) } else { None };
+    let mut refs: Vec<(String, Method)> = Vec::new();
+    if let Some(k) = &kinematic {
+        refs.push(("kinematic".into(), Method::Kinematic(k)));
+    }
+    refs.extend(solvers.iter().map(|(n, s)| (n.clone(), Method::Network(s))));
+    // The joints the CMU layout's markers constrain, when the data is on the CMU skeleton.
+    let names = |sk: &locap_core::Skeleton| sk.joints().iter().map(|j| j.name.clone()).collect::<Vec<_>>();
+    let constrained = match &kinematic {
+        Some(k) => Some(k.constrained().to_vec()),
+        None => KinematicSolver::cmu41()
+            .ok()
+            .filter(|k| names(k.skeleton()) == names(&data.skeleton))
+            .map(|k| k.constrained().to_vec()),
+    };
+    let scores = evaluate_methods(&refs, &data.shards, refiner.as_ref(), constrained.as_deref())?;
     let joints: Vec<String> = data.skeleton.joints().iter().map(|j| j.name.clone()).collect();
     let mut text = format!(
         "{} held-out takes, {} frames, cleaning: {}\n",
@@ -127,23 +158,27 @@ pub fn run(args: Args) -> Result<ExitCode> {
     // A waist frame solves a body; a wrist frame a hand.
     let region = if solvers[0].1.meta.frame.name.contains("wrist") { "hand" } else { "body" };
     text.push_str(&table(region, &scores));
-    let real = real_rows(&args, &solvers, refiner.as_ref())?;
+    let real = real_rows(&args, &solvers, kinematic.as_ref(), refiner.as_ref())?;
     if !real.is_empty() {
         text.push_str(&format!(
-            "\nreal takes vs their reference solution\n{:<24} {:<16} {:>8} {:>10} {:>14} {:>9} {:>9}\n",
-            "take", "model", "frames", "JPE (mm)", "JPE root-aln", "root (mm)", "JOE (deg)"
+            "\nreal takes vs their reference solution\n{:<24} {:<16} {:>8} {:>10} {:>14} {:>9} {:>9} {:>10} {:>8} {:>10} {:>9}\n",
+            "take", "model", "frames", "JPE (mm)", "JPE root-aln", "root (mm)", "JOE (deg)", "max jump", ">20 deg", "wrist<=60", "frames/s"
         ));
         for r in &real {
             let c = &r.comparison;
             text.push_str(&format!(
-                "{:<24} {:<16} {:>8} {:>10.1} {:>14.1} {:>9.1} {:>9.2}\n",
+                "{:<24} {:<16} {:>8} {:>10.1} {:>14.1} {:>9.1} {:>9.2} {:>10.1} {:>8} {:>10} {:>9.0}\n",
                 stem(Path::new(&r.take)),
                 r.model,
                 c.frames,
                 c.jpe_mm,
                 c.jpe_root_aligned_mm,
                 c.root_mm,
-                c.joe_deg
+                c.joe_deg,
+                r.max_jump_deg,
+                r.jumps_over_20_deg,
+                r.wrists_within_60_mm.map_or("-".into(), |(f, _)| format!("{:.1}%", 100.0 * f)),
+                r.frames_per_s
             ));
         }
     }
@@ -186,27 +221,49 @@ pub fn run(args: Args) -> Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
-/// Every `--real` take solved by every model and compared with its reference.
-fn real_rows(args: &Args, solvers: &[(String, Solver)], refiner: Option<&Refiner>) -> Result<Vec<RealRow>> {
+/// Every `--real` take solved by every model (and the kinematic solver) and compared with its
+/// reference.
+fn real_rows(
+    args: &Args,
+    solvers: &[(String, Solver)],
+    kinematic: Option<&KinematicSolver>,
+    refiner: Option<&Refiner>,
+) -> Result<Vec<RealRow>> {
     let options = crate::inputs::MotionOptions { asf: None, bvh_mm_per_unit: 25.4 / 0.45, amc_rate_hz: 120.0 };
     let mut rows = Vec::new();
     for (take_path, reference_path) in args.real.iter().zip(&args.reference) {
         let take = crate::inputs::read_take(take_path)?;
         let reference = crate::inputs::read_motion(reference_path, &options)?;
+        let edm = locap_clean::FillConfig::default();
+        let filler: &dyn locap_clean::Filler = match refiner {
+            Some(r) => r,
+            None => &edm,
+        };
+        let mut solved = Vec::new();
+        if let Some(k) = kinematic {
+            let t0 = std::time::Instant::now();
+            let (motion, _, _) = k.solve(&take, filler).with_context(|| format!("{}", take_path.display()))?;
+            solved.push(("kinematic".to_string(), motion, k.rotating(), t0.elapsed().as_secs_f64()));
+        }
         for (name, solver) in solvers {
-            let edm = locap_clean::FillConfig::default();
-            let filler: &dyn locap_clean::Filler = match refiner {
-                Some(r) => r,
-                None => &edm,
-            };
+            let t0 = std::time::Instant::now();
             let (motion, _) = solver.solve(&take, filler).with_context(|| format!("{}", take_path.display()))?;
-            let comparison = compare_motions(&motion, &reference, &solver.meta.rotating)
+            solved.push((name.clone(), motion, solver.meta.rotating.clone(), t0.elapsed().as_secs_f64()));
+        }
+        for (name, motion, rotating, seconds) in solved {
+            let comparison = compare_motions(&motion, &reference, &rotating)
                 .with_context(|| format!("{} vs {}", take_path.display(), reference_path.display()))?;
+            let (max_jump_deg, max_jump_joint, jumps_over_20_deg) = rotation_jumps(&motion, &rotating, 20.0);
             rows.push(RealRow {
                 take: take_path.display().to_string(),
                 reference: reference_path.display().to_string(),
-                model: name.clone(),
+                model: name,
                 comparison,
+                max_jump_deg,
+                max_jump_joint,
+                jumps_over_20_deg,
+                wrists_within_60_mm: wrists_within(&motion, &take, 60.0),
+                frames_per_s: motion.frame_count() as f64 / seconds.max(1e-9),
             });
         }
     }

@@ -14,9 +14,21 @@ use std::process::ExitCode;
 
 /// Arguments of `locap layout`.
 #[derive(Parser, Debug)]
+#[command(
+    args_conflicts_with_subcommands = true,
+    after_help = "Example (the 62-marker set of ../shared/data/labeling):\n  locap layout --from-opensim \
+                  ../shared/data/labeling/Rajagopal2015_mod.osim ../shared/data/labeling/MarkerSet.xml -o rajagopal62.toml"
+)]
 pub struct Args {
     #[command(subcommand)]
-    what: What,
+    what: Option<What>,
+    /// Build a layout and its skeleton (joints, offsets, joint limits; Y up, mm) from an
+    /// OpenSim 4 model and, optionally, a separate marker set file (else the model's own).
+    #[arg(long, num_args = 1..=2, value_names = ["MODEL", "MARKERS"], help_heading = "OpenSim")]
+    from_opensim: Vec<PathBuf>,
+    /// Layout to write with --from-opensim (TOML; JSON if the name ends in .json).
+    #[arg(short, long, value_name = "FILE", requires = "from_opensim", help_heading = "Output")]
+    output: Option<PathBuf>,
 }
 
 #[derive(Subcommand, Debug)]
@@ -113,9 +125,49 @@ impl From<Lab> for LabFrame {
 /// Runs `locap layout`.
 pub fn run(args: Args) -> Result<ExitCode> {
     match args.what {
-        What::Calibrate(a) => run_calibrate(a),
-        What::Fit(a) => run_fit(a),
+        Some(What::Calibrate(a)) => run_calibrate(a),
+        Some(What::Fit(a)) => run_fit(a),
+        None if !args.from_opensim.is_empty() => {
+            let Some(output) = &args.output else {
+                return Err(inputs::usage("--from-opensim needs -o FILE, the layout to write"));
+            };
+            run_from_opensim(&args.from_opensim, output)
+        }
+        None => Err(inputs::usage("give a subcommand (calibrate, fit) or --from-opensim MODEL [MARKERS] -o FILE")),
     }
+}
+
+/// Reads an OpenSim model (and marker set) into a layout with its skeleton.
+pub fn read_opensim(model: &Path, markers: Option<&Path>) -> Result<Layout> {
+    let given: Vec<&Path> = std::iter::once(model).chain(markers).collect();
+    inputs::protect(&given)?;
+    let read = |p: &Path| std::fs::read_to_string(p).with_context(|| format!("{}: cannot read", p.display()));
+    let model_text = read(model)?;
+    let marker_text = markers.map(read).transpose()?;
+    let (model_name, marker_name) = (model.display().to_string(), markers.map(|p| p.display().to_string()));
+    let layout = locap_synth::opensim::layout_from_opensim(
+        locap_synth::opensim::XmlSource { name: &model_name, text: &model_text },
+        match (&marker_name, &marker_text) {
+            (Some(name), Some(text)) => Some(locap_synth::opensim::XmlSource { name, text }),
+            _ => None,
+        },
+    )?;
+    Ok(layout)
+}
+
+fn run_from_opensim(paths: &[PathBuf], output: &Path) -> Result<ExitCode> {
+    inputs::check_outputs(&[output.to_path_buf()])?;
+    let layout = read_opensim(&paths[0], paths.get(1).map(PathBuf::as_path))?;
+    write_layout(&layout, output)?;
+    let joints = layout.skeleton.as_ref().map_or(0, |s| s.joints.len());
+    let dofs: usize = layout.skeleton.iter().flat_map(|s| &s.joints).map(|j| j.dofs.as_ref().map_or(3, Vec::len)).sum();
+    crate::emit(&format!(
+        "{}: {} markers on {joints} bodies ({dofs} rotational degrees of freedom with limits), Y up, mm\n",
+        output.display(),
+        layout.markers.len()
+    ))?;
+    eprintln!("wrote {}", output.display());
+    Ok(ExitCode::SUCCESS)
 }
 
 /// Reads a layout file (TOML, or JSON by extension).

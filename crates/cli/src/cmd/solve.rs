@@ -10,6 +10,13 @@
 //! Blender, MotionBuilder and OpenSim show the character upright where its markers were, facing
 //! the way they face. BVH lengths are in `--bvh-unit` (centimetres by default).
 //!
+//! `--method ik` solves with the kinematic solver instead (`locap_nn::kinematic`: the labeler's
+//! IK after a subject calibration on the take, no training), for any marker set with a layout:
+//! `--layout` (with a skeleton section, e.g. from `locap layout --from-opensim`, or with
+//! `--skeleton`), by default the CMU 41-marker layout on the shipped solver's skeleton. The
+//! default `--method auto` uses the network where its markers are all in the take and the
+//! kinematic solver elsewhere, saying so.
+//!
 //! Without `--model`, the solver shipped with locap is used (`locap_nn::shipped::solver`,
 //! `models/solver-cmu41.locapsv`: the CMU 41-marker set on the CMU ASF skeleton, built into the
 //! binary). The cleaning is `locap_clean::clean_with` with its defaults, and `--markers-out`
@@ -19,11 +26,12 @@
 use crate::cmd::clean::Method as FillArg;
 use crate::inputs;
 use anyhow::{Context, Result, bail};
-use clap::Parser;
+use clap::{Parser, ValueEnum};
 use locap_clean::{FillConfig, Filler};
 use locap_core::{LengthUnit, Quat, UpAxis};
 use locap_io::{axes, export};
 use locap_nn::Refiner;
+use locap_nn::kinematic::KinematicSolver;
 use locap_nn::solver::Solver;
 use locap_synth::synthesize::LabFrame;
 use std::path::{Path, PathBuf};
@@ -79,6 +87,49 @@ pub struct Args {
     /// No refiner: what `solve` does by default now (kept so older scripts still run).
     #[arg(long, hide = true, conflicts_with = "refiner")]
     no_refiner: bool,
+    /// How to solve: `network` (the solver model), `ik` (the kinematic solver: a layout and a
+    /// skeleton, no training), `auto`: the network where its markers are all in the take,
+    /// else `ik`.
+    #[arg(long, value_enum, default_value_t = Method::Auto, help_heading = "Solver")]
+    method: Method,
+    /// Layout for the kinematic solver (TOML or JSON) with a skeleton section (e.g. from
+    /// `locap layout --from-opensim`) or with --skeleton. Default: the CMU 41-marker layout
+    /// on the shipped solver's skeleton.
+    #[arg(long, value_name = "LAYOUT", help_heading = "Solver")]
+    layout: Option<PathBuf>,
+    /// Skeleton (ASF or BVH, Y up) for a --layout without a skeleton section.
+    #[arg(long, value_name = "FILE", requires = "layout", help_heading = "Solver")]
+    skeleton: Option<PathBuf>,
+}
+
+/// Solving methods on the command line.
+#[derive(Debug, Clone, Copy, ValueEnum, PartialEq, Eq)]
+pub enum Method {
+    /// The network where its markers are all in the take, else the kinematic solver.
+    Auto,
+    /// The network solver (`--model` or the shipped one).
+    Network,
+    /// The kinematic solver (`--layout`, or the CMU 41-marker layout).
+    Ik,
+}
+
+/// The kinematic solver the arguments ask for.
+fn kinematic_solver(layout: Option<&Path>, skeleton: Option<&Path>) -> Result<KinematicSolver> {
+    let Some(path) = layout else { return Ok(KinematicSolver::cmu41()?) };
+    let layout = crate::cmd::layout::read_layout(path)?;
+    let solver = match skeleton {
+        Some(sk) => {
+            let skeleton = if inputs::has_extension(sk, &["asf"]) {
+                let asf = locap_io::asf_amc::read_asf_path(sk)?;
+                asf.to_skeleton(asf.mm_per_unit()).map_err(|e| e.in_file(sk))?
+            } else {
+                locap_io::bvh::read_bvh_path(sk, LengthUnit::Centimetre)?.skeleton
+            };
+            KinematicSolver::new(&layout, &skeleton, None)
+        }
+        None => KinematicSolver::from_layout(&layout),
+    };
+    solver.with_context(|| format!("{}", path.display()))
 }
 
 /// What one take gave.
@@ -87,6 +138,9 @@ struct Solved {
     frames: usize,
     rate_hz: f64,
     seconds: f64,
+    /// The kinematic solver's marker residual (mm RMS), calibration residual before and after
+    /// (mm RMS) and subject scale, when it solved.
+    residual_mm: Option<(f64, (f64, f64), f64)>,
 }
 
 /// Where each input's output goes: `output` itself for one named file, else a mirror of the
@@ -126,7 +180,7 @@ fn read_model(path: &Path) -> Result<Vec<u8>> {
 
 /// Runs `locap solve`.
 pub fn run(args: Args) -> Result<ExitCode> {
-    let auxiliary = [args.model.as_ref(), args.refiner.as_ref()];
+    let auxiliary = [args.model.as_ref(), args.refiner.as_ref(), args.layout.as_ref(), args.skeleton.as_ref()];
     inputs::protect(&auxiliary.iter().flatten().map(|p| p.as_path()).collect::<Vec<_>>())?;
     let model = args.model.as_deref().map(read_model).transpose()?;
     let refiner = args.refiner.as_deref().map(read_model).transpose()?;
@@ -142,6 +196,10 @@ pub fn run(args: Args) -> Result<ExitCode> {
         Refiner::from_bytes(bytes, &device).with_context(|| format!("{}", path.display()))?;
     }
     drop(probe);
+    let kinematic = match args.method {
+        Method::Network => None,
+        Method::Ik | Method::Auto => Some(kinematic_solver(args.layout.as_deref(), args.skeleton.as_deref())?),
+    };
     let files = inputs::expand(&args.inputs, &["c3d", "trc"])?;
     let targets = outputs(&args.inputs, &files, &args.output, &args.to, export::MOTION_EXTENSIONS)?;
     if args.with_markers && !targets.iter().all(|t| inputs::has_extension(t, &["gltf", "glb"])) {
@@ -176,7 +234,31 @@ pub fn run(args: Args) -> Result<ExitCode> {
             },
             (None, fill) => Box::new(FillConfig { method: fill.into(), ..FillConfig::default() }),
         };
-        let (motion, cleaned) = solver.solve(&take, filler.as_ref())?;
+        let use_ik = match (args.method, &kinematic) {
+            (Method::Ik, _) => true,
+            (Method::Auto, Some(k)) => {
+                let network_fits = locap_nn::features::marker_order(&take, &solver.meta.markers).is_ok();
+                if !network_fits && k.fits(&take) {
+                    eprintln!(
+                        "{}: the solver model was trained on another marker set; solving with the kinematic solver (--method ik{})",
+                        input.display(),
+                        args.layout.as_ref().map_or(String::new(), |p| format!(", layout {}", p.display()))
+                    );
+                }
+                !network_fits && k.fits(&take)
+            }
+            _ => false,
+        };
+        let (motion, cleaned, residual_mm) = match (&kinematic, use_ik) {
+            (Some(k), true) => {
+                let (motion, cleaned, report) = k.solve(&take, filler.as_ref())?;
+                (motion, cleaned, Some((report.residual_rms_mm, report.calibration_rms_mm, report.scale)))
+            }
+            _ => {
+                let (motion, cleaned) = solver.solve(&take, filler.as_ref())?;
+                (motion, cleaned, None)
+            }
+        };
         let seconds = t0.elapsed().as_secs_f64();
         inputs::create_parent(&targets[i])?;
         let lab = solver.meta.lab;
@@ -207,13 +289,20 @@ pub fn run(args: Args) -> Result<ExitCode> {
             frames: motion.frame_count(),
             rate_hz: motion.frame_rate_hz(),
             seconds,
+            residual_mm,
         })
     });
     let total: usize = done.iter().map(|(_, s)| s.frames).sum();
     let mut text = String::new();
     for (path, s) in &done {
+        let method = match s.residual_mm {
+            Some((r, (before, after), scale)) => format!(
+                ", kinematic, marker residual {r:.1} mm RMS; calibration {before:.1} -> {after:.1} mm, scale {scale:.3}"
+            ),
+            None => String::new(),
+        };
         text.push_str(&format!(
-            "{}: {} frames at {} Hz -> {} ({:.0} frames/s)\n",
+            "{}: {} frames at {} Hz -> {} ({:.0} frames/s{method})\n",
             path.display(),
             s.frames,
             s.rate_hz,

@@ -1,0 +1,257 @@
+//! The kinematic solver: the "optimization-based" column of LocalMoCap's Table 1 (section 4.2,
+//! Vicon / MoSh++), for any marker set that has a layout, with no training.
+//!
+//! A take is solved by the labeler's IK ([`locap_label::ik`], one IK in the code base) through
+//! [`locap_label::ik::solve_sequence`]: first a subject calibration on the take itself (an
+//! overall scale, then each bone's length and each marker's offset, fitted by linear least
+//! squares to poses of frames spread over the take, as a studio's range-of-motion calibration),
+//! then every frame's joint angles and root by Levenberg-Marquardt on the robust (Huber) marker
+//! distances, warm-started from the previous frame, with joint limits (the layout skeleton's
+//! degrees of freedom where it has them) and a temporal smoothness term.
+//!
+//! Markers are the cleaned take's *captured* samples (`Cleaned::visible`: not gaps, not
+//! outliers): the IK needs no gap filling, and filled samples would only add the filler's error.
+//! The skeleton comes from the layout ([`locap_synth::layout::LayoutSkeleton`], e.g. built from
+//! an OpenSim model) or is given ([`KinematicSolver::cmu41`]: the shipped network's CMU
+//! skeleton, whose joints without degrees of freedom stay still). It is Y-up; a Z-up take sees it
+//! turned into its lab by the convention of [`locap_core::units::y_up_to_z_up`], and the motion
+//! comes back in the skeleton's Y-up frame, as the network solver's does.
+
+use crate::NnError;
+use locap_clean::{CleanConfig, Cleaned, Filler};
+use locap_core::{Motion, Skeleton, Take, UpAxis, Vec3};
+use locap_label::ik::{Attachment, DofAxis, JointDofs, MarkerModel, SequenceConfig, solve_sequence};
+use locap_synth::Layout;
+
+/// A kinematic solver: a layout's markers attached to a skeleton.
+#[derive(Debug, Clone)]
+pub struct KinematicSolver {
+    model: MarkerModel,
+    /// Layout marker names, model order.
+    markers: Vec<String>,
+    /// Per joint: some marker rides on it or on a joint below it, so the markers constrain its
+    /// rotation.
+    constrained: Vec<bool>,
+    /// Settings of the calibration and the per-frame fit.
+    pub config: SequenceConfig,
+}
+
+/// What a solve did besides the motion.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct KinematicReport {
+    /// Frames solved.
+    pub frames: usize,
+    /// Seconds spent (calibration and per-frame fit, not the cleaning).
+    pub seconds: f64,
+    /// RMS distance of the captured markers from the solved model over the take, mm.
+    pub residual_rms_mm: f64,
+    /// The same on the calibration frames before and after calibration, mm.
+    pub calibration_rms_mm: (f64, f64),
+    /// The overall subject scale against the template skeleton.
+    pub scale: f64,
+}
+
+impl KinematicReport {
+    /// Frames solved per second.
+    pub fn frames_per_s(&self) -> f64 {
+        self.frames as f64 / self.seconds.max(1e-9)
+    }
+}
+
+fn config_error(e: impl std::fmt::Display) -> NnError {
+    NnError::Kinematic(e.to_string())
+}
+
+impl KinematicSolver {
+    /// `layout`'s markers on `skeleton` (Y-up, as ASF and BVH skeletons are), with each
+    /// joint's rotational freedom (`None`: every joint free).
+    ///
+    /// # Errors
+    /// The layout does not bind to the skeleton, or the freedoms are not one per joint.
+    pub fn new(layout: &Layout, skeleton: &Skeleton, dofs: Option<Vec<JointDofs>>) -> Result<KinematicSolver, NnError> {
+        let bound = layout.bind(skeleton).map_err(config_error)?;
+        let attachments: Vec<Option<Attachment>> = bound
+            .markers
+            .iter()
+            .map(|m| {
+                Some(Attachment {
+                    joint: m.joint,
+                    offset_mm: m.offset_mm,
+                    blend: m.blend.as_ref().map(|b| (b.joint, b.weight, b.offset_mm)),
+                })
+            })
+            .collect();
+        let mut constrained = vec![false; skeleton.len()];
+        for m in &bound.markers {
+            for start in std::iter::once(m.joint).chain(m.blend.as_ref().map(|b| b.joint)) {
+                let mut j = Some(start);
+                while let Some(k) = j {
+                    constrained[k] = true;
+                    j = skeleton.joints()[k].parent;
+                }
+            }
+        }
+        let mut model = MarkerModel::new(skeleton.clone(), attachments).map_err(config_error)?;
+        if let Some(dofs) = dofs {
+            model = model.with_dofs(dofs).map_err(config_error)?;
+        }
+        Ok(KinematicSolver { model, markers: bound.names, constrained, config: SequenceConfig::default() })
+    }
+
+    /// A layout that carries its skeleton (see [`locap_synth::layout::LayoutSkeleton`]), with
+    /// that skeleton's joint limits.
+    ///
+    /// # Errors
+    /// The layout has no skeleton section, or it does not make a skeleton.
+    pub fn from_layout(layout: &Layout) -> Result<KinematicSolver, NnError> {
+        let Some(section) = &layout.skeleton else {
+            return Err(NnError::Kinematic(format!(
+                "layout {:?} carries no skeleton (a [skeleton] section, e.g. from `locap layout from-opensim`)",
+                layout.name
+            )));
+        };
+        if section.up_axis != UpAxis::Y {
+            return Err(NnError::Kinematic("only Y-up layout skeletons are solved".into()));
+        }
+        let skeleton = section.to_skeleton().map_err(config_error)?;
+        let dofs = section
+            .joints
+            .iter()
+            .map(|j| match &j.dofs {
+                None => JointDofs::Free,
+                Some(axes) => JointDofs::Axes(
+                    axes.iter()
+                        .map(|d| DofAxis {
+                            axis: Vec3::from(d.axis),
+                            min_rad: d.min_deg.to_radians(),
+                            max_rad: d.max_deg.to_radians(),
+                        })
+                        .collect(),
+                ),
+            })
+            .collect();
+        KinematicSolver::new(layout, &skeleton, Some(dofs))
+    }
+
+    /// The CMU 41-marker set ([`Layout::cmu41`]) on the shipped network solver's CMU skeleton;
+    /// the joints that skeleton never rotates (no degrees of freedom in the ASF) stay still.
+    ///
+    /// # Errors
+    /// The shipped solver does not load (a damaged build).
+    pub fn cmu41() -> Result<KinematicSolver, NnError> {
+        let device = Default::default();
+        let shipped = crate::shipped::solver(&device)?;
+        let dofs = shipped
+            .meta
+            .rotating
+            .iter()
+            .enumerate()
+            .map(|(j, r)| if *r || j == 0 { JointDofs::Free } else { JointDofs::Axes(Vec::new()) })
+            .collect();
+        KinematicSolver::new(&Layout::cmu41(), &shipped.meta.skeleton, Some(dofs))
+    }
+
+    /// The layout's marker names, model order.
+    pub fn markers(&self) -> &[String] {
+        &self.markers
+    }
+
+    /// The template skeleton (before a take's calibration).
+    pub fn skeleton(&self) -> &Skeleton {
+        self.model.skeleton()
+    }
+
+    /// Per joint: the solver turns it (not welded by its degrees of freedom).
+    pub fn rotating(&self) -> Vec<bool> {
+        self.model.rotating()
+    }
+
+    /// Per joint: the markers constrain its rotation (a marker rides on it or below it).
+    pub fn constrained(&self) -> &[bool] {
+        &self.constrained
+    }
+
+    /// True when `take` carries at least half of the layout's markers (by label): enough to
+    /// pose every limb the others leave free only through the joint limits and rest prior.
+    pub fn fits(&self, take: &Take) -> bool {
+        let found = self.markers.iter().filter(|m| take.marker_index(m).is_some()).count();
+        found * 2 >= self.markers.len() && found >= 3
+    }
+
+    /// The whole pipeline on a raw take: cleaned as `locap clean` does (swaps and outliers;
+    /// gaps filled by `filler`, for the cleaned markers only), then solved
+    /// ([`KinematicSolver::solve_cleaned`]).
+    ///
+    /// # Errors
+    /// As [`KinematicSolver::solve_cleaned`], or the filler cannot run on the take.
+    pub fn solve(&self, take: &Take, filler: &dyn Filler) -> Result<(Motion, Cleaned, KinematicReport), NnError> {
+        if !self.fits(take) {
+            return Err(self.marker_set_error(take));
+        }
+        let cleaned = locap_clean::clean_with(take, &CleanConfig::default(), filler)?;
+        let (motion, report) = self.solve_cleaned(&cleaned, take.frame_rate_hz())?;
+        Ok((motion, cleaned, report))
+    }
+
+    fn marker_set_error(&self, take: &Take) -> NnError {
+        let missing: Vec<&str> =
+            self.markers.iter().filter(|m| take.marker_index(m).is_none()).map(String::as_str).collect();
+        NnError::MarkerSet {
+            missing: missing.len(),
+            total: self.markers.len(),
+            first: missing.iter().take(5).copied().collect::<Vec<_>>().join(", "),
+        }
+    }
+
+    /// Solves a cleaned take: its captured samples of the layout's markers (lab frame; a
+    /// Z-up take is the Y-up skeleton turned by the lab convention), at `rate_hz`. Returns the
+    /// motion on the subject's calibrated skeleton, in the skeleton's Y-up frame.
+    ///
+    /// # Errors
+    /// The take carries fewer than half of the layout's markers, or no frames.
+    pub fn solve_cleaned(&self, cleaned: &Cleaned, rate_hz: f64) -> Result<(Motion, KinematicReport), NnError> {
+        let take = cleaned.take();
+        if !self.fits(take) {
+            return Err(self.marker_set_error(take));
+        }
+        if take.frame_count() == 0 {
+            return Err(NnError::EmptyTake);
+        }
+        let started = std::time::Instant::now();
+        let order: Vec<Option<usize>> = self.markers.iter().map(|m| take.marker_index(m)).collect();
+        let m = take.marker_count();
+        let frames: Vec<Vec<Option<Vec3>>> = (0..take.frame_count())
+            .map(|f| {
+                order
+                    .iter()
+                    .map(|k| {
+                        let k = (*k)?;
+                        if cleaned.visible.get(f * m + k).copied().unwrap_or(false) {
+                            take.position_mm(f, k)
+                        } else {
+                            None
+                        }
+                    })
+                    .collect()
+            })
+            .collect();
+        let model = match take.up_axis {
+            UpAxis::Z => self.model.clone().in_lab(MarkerModel::y_up_in_z_up_lab()),
+            UpAxis::Y => self.model.clone(),
+        };
+        let fit = solve_sequence(model, &frames, rate_hz, &self.config).map_err(config_error)?;
+        let rms = fit.rms_mm(&frames);
+        let skeleton = fit.model.skeleton().clone();
+        let rotations = fit.poses.iter().flat_map(|(local, _)| local.iter().copied()).collect();
+        let roots = fit.poses.iter().map(|(_, root)| *root).collect();
+        let motion = Motion::new(skeleton, rotations, roots, rate_hz).map_err(NnError::Skeleton)?;
+        let report = KinematicReport {
+            frames: take.frame_count(),
+            seconds: started.elapsed().as_secs_f64(),
+            residual_rms_mm: rms,
+            calibration_rms_mm: fit.calibration_rms_mm,
+            scale: fit.scale,
+        };
+        Ok((motion, report))
+    }
+}
