@@ -422,3 +422,48 @@ impl PyTake {
         )
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn example() -> PathBuf {
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples/cmu_01_01_last10s.c3d")
+    }
+
+    #[test]
+    fn a_read_take_writes_its_file_back_unchanged_and_a_changed_one_through_write_changed() {
+        let dir = tempfile::tempdir().unwrap();
+        let read = PyTake::read_path(&example()).unwrap();
+        assert!(!read.changed && read.source.is_some());
+        read.write_path(&dir.path().join("same.c3d"), LengthUnit::Millimetre).unwrap();
+        let mut file = c3d::read_path(&example()).unwrap();
+        let mut bytes = Vec::new();
+        c3d::write(&file, &mut bytes).unwrap();
+        assert_eq!(std::fs::read(dir.path().join("same.c3d")).unwrap(), bytes);
+
+        let mut take = read.take.clone();
+        take.set_position_mm(0, 0, None).unwrap();
+        let changed = read.derived(take.clone());
+        changed.write_path(&dir.path().join("changed.c3d"), LengthUnit::Millimetre).unwrap();
+        file.write_changed(&take, None, &example(), &dir.path().join("direct.c3d")).unwrap();
+        assert_eq!(
+            std::fs::read(dir.path().join("changed.c3d")).unwrap(),
+            std::fs::read(dir.path().join("direct.c3d")).unwrap()
+        );
+        let positions = changed.positions_array();
+        assert!(positions[[0, 0, 0]].is_nan() && positions[[0, 0, 1]].is_nan());
+    }
+
+    #[test]
+    fn a_take_read_is_never_overwritten_and_unknown_formats_are_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("t.c3d");
+        std::fs::copy(example(), &path).unwrap();
+        let read = PyTake::read_path(&path).unwrap();
+        assert!(read.write_path(&path, LengthUnit::Millimetre).is_err());
+        let err = read.write_path(&dir.path().join("t.bvh"), LengthUnit::Millimetre).unwrap_err();
+        assert!(format!("{err:#}").contains("unknown output format"));
+        assert!(PyTake::read_path(dir.path()).is_err());
+    }
+}

@@ -4,7 +4,8 @@
 takes the way the CLI does (folders searched recursively, links to folders not followed, a
 file reached twice read once), sends one task per take to the cluster, and writes each result
 atomically to the name the CLI would give it (``locap clean FOLDER -o OUT_DIR``: the take's
-path relative to the folder all inputs share, under ``out_dir``). A take that fails is one
+path relative to the folder all inputs share, under ``out_dir``, which is always a folder, even
+for a single take). A take that fails is one
 row of the summary with the CLI's message (``path: reason``); the others go on.
 
 Every task reads and writes through the paths it is given, so on a multi-machine cluster the
