@@ -55,6 +55,9 @@ pub enum Error {
     /// The data read does not form a valid skeleton or motion.
     #[error(transparent)]
     Skeleton(#[from] locap_core::SkeletonError),
+    /// A `LOCAP` record that cannot be stored (a list past the compact form's ceiling).
+    #[error(transparent)]
+    Provenance(#[from] locap_core::provenance::ProvenanceError),
     /// An error in a named file.
     #[error("{}: {error}", path.display())]
     InFile {

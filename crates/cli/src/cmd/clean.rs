@@ -18,7 +18,6 @@ use locap_clean::outliers::OutlierConfig;
 use locap_clean::swaps::SwapConfig;
 use locap_clean::{CleanConfig, Cleaned, FillConfig, FillMethod, Filler, neighbours::Selection};
 use locap_core::Take;
-use locap_io::c3d;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
@@ -214,9 +213,7 @@ fn clean_one(input: &Path, output: &Path, args: &Args, models: &Models) -> Resul
     let config = args.config();
     let filler = models.filler_for(&raw, config.fill, &args.model)?;
     let cleaned = locap_clean::clean_with(&raw, &config, filler.as_ref())?;
-    file.set_take(cleaned.take()).map_err(|e| e.in_file(input))?;
-    file.set_provenance(cleaned.take(), &cleaned.provenance()).with_context(|| format!("{}", output.display()))?;
-    c3d::write_path(&file, output)?;
+    file.write_changed(cleaned.take(), Some(&cleaned.provenance()), input, output)?;
     Ok(cleaned)
 }
 

@@ -373,6 +373,29 @@ impl C3dFile {
         Ok(())
     }
 
+    /// Puts `take`, this file's own take changed (cleaned, relabeled), back into the file with
+    /// `record` of what changed in the `LOCAP` group, and writes the file atomically to
+    /// `output`; every other parameter and the analog data stay as read. `locap clean` and the
+    /// Python bindings write a changed take through this one call, so both give the same bytes.
+    ///
+    /// # Errors
+    /// The take does not fit the file ([`C3dFile::set_take`]; named after `input`, the file
+    /// this one was read from), a `LOCAP` list past its ceiling or a failed write (named after
+    /// `output`).
+    pub fn write_changed(
+        &mut self,
+        take: &Take,
+        record: Option<&Provenance>,
+        input: &std::path::Path,
+        output: &std::path::Path,
+    ) -> Result<()> {
+        self.set_take(take).map_err(|e| e.in_file(input))?;
+        if let Some(record) = record {
+            self.set_provenance(take, record).map_err(|e| Error::from(e).in_file(output))?;
+        }
+        write_path(self, output)
+    }
+
     /// Replaces the point data with `take` (positions converted back to the file's unit).
     /// Marker count and names may change (relabeling); the frame count may change only if
     /// the file has no analog data, since analog samples are tied to 3D frames.

@@ -1,0 +1,424 @@
+//! `locap.clean`, `locap.label`, `locap.solve` and `locap.Motion`: the library stages the CLI
+//! runs (LocalMoCap sections 3.1-3.2; the labeling paper's sections 3-4), with the CLI's
+//! defaults and shipped models.
+//!
+//! Each function takes and returns in-memory objects; the file a take came from travels with
+//! it, so `locap.clean(locap.read(a)).write(b)` writes what `locap clean a -o b` writes.
+
+use crate::take::{PyTake, parse_unit};
+use crate::{failure, usage};
+use anyhow::{Context, bail};
+use locap_clean::outliers::OutlierConfig;
+use locap_clean::swaps::SwapConfig;
+use locap_clean::{CleanConfig, Cleaned, FillConfig, FillMethod, Filler, neighbours::Selection};
+use locap_core::{Motion, Take};
+use locap_label::{FitConfig, LabelConfig, Template};
+use locap_nn::solver::Solver;
+use locap_nn::{Refiner, Refiners};
+use numpy::IntoPyArray;
+use numpy::ndarray::{Array2, Array3};
+use numpy::{PyArray2, PyArray3};
+use pyo3::prelude::*;
+use serde_json::json;
+use std::path::{Path, PathBuf};
+
+/// `method=` of [`clean`]: the fill, and whether the learned refiner refines it.
+fn fill_method(name: &str) -> PyResult<(FillMethod, bool)> {
+    Ok(match name {
+        "edm" => (FillMethod::Edm, false),
+        "linear" => (FillMethod::Linear, false),
+        "spline" => (FillMethod::Spline, false),
+        "pca" => (FillMethod::Pca, false),
+        "rigid" => (FillMethod::Rigid, false),
+        "auto" => (FillMethod::Auto, false),
+        // The refiner starts from EDM's fill.
+        "neural" => (FillMethod::Edm, true),
+        other => {
+            return Err(usage(format!("method {other:?}: one of edm, linear, spline, pca, rigid, auto, neural")));
+        }
+    })
+}
+
+fn selection(name: &str) -> PyResult<Selection> {
+    match name {
+        "variance" => Ok(Selection::Variance),
+        "nearest" => Ok(Selection::MeanDistance),
+        other => Err(usage(format!("ranking {other:?}: one of variance, nearest"))),
+    }
+}
+
+fn positive(name: &str, value: f64) -> PyResult<f64> {
+    if !(value.is_finite() && value > 0.0) {
+        return Err(usage(format!("{name} {value}: must be a finite number greater than 0")));
+    }
+    Ok(value)
+}
+
+/// Reads model files, naming the file in the error.
+fn read_models(paths: &[PathBuf]) -> PyResult<Vec<Vec<u8>>> {
+    paths
+        .iter()
+        .map(|path| {
+            locap_io::atomic::protect(path);
+            std::fs::read(path)
+                .with_context(|| format!("{}: cannot read the model", path.display()))
+                .map_err(|e| failure(Some(path), &e))
+        })
+        .collect()
+}
+
+/// The filler of `method="neural"`: the given refiners (all must fit), or the shipped ones
+/// that fit `take`, refusing a take none fits as `locap clean --method neural` does.
+fn neural_filler(take: &Take, models: &[(String, Vec<u8>)]) -> anyhow::Result<Box<dyn Filler>> {
+    let device = Default::default();
+    if !models.is_empty() {
+        let mut named = Vec::new();
+        for (name, bytes) in models {
+            named.push((name.clone(), Refiner::from_bytes(bytes, &device)?));
+        }
+        return Ok(Box::new(Refiners::new(named)));
+    }
+    let fitting = locap_nn::shipped::refiners_for(take, &device)?;
+    if fitting.is_empty() {
+        let names: Vec<&str> = locap_nn::shipped::REFINERS.iter().map(|s| s.name).collect();
+        bail!(
+            "no shipped refiner fits this take's markers (shipped: {}); train one with `locap train fill` and \
+             give it with models=[...], or use method=\"edm\"",
+            names.join(", ")
+        );
+    }
+    Ok(Box::new(fitting))
+}
+
+/// What `locap clean` prints for a take, as JSON.
+fn clean_report(cleaned: &Cleaned) -> serde_json::Value {
+    json!({
+        "method": cleaned.method,
+        "gaps": cleaned.gap_count(),
+        "filled_samples": cleaned.filled_samples(),
+        "still_missing": cleaned.still_missing(),
+        "outliers": cleaned.outliers.len(),
+        "outlier_samples": cleaned.outlier_samples,
+        "swaps": cleaned.swaps.len(),
+        "filled_by": cleaned.fills_by_method().iter()
+            .map(|(method, gaps, samples)| json!({"method": method, "gaps": gaps, "samples": samples}))
+            .collect::<Vec<_>>(),
+        "markers": cleaned.markers.iter()
+            .map(|m| json!({
+                "label": m.label, "gaps": m.gaps, "filled_samples": m.filled_samples,
+                "still_missing": m.still_missing, "outliers": m.outliers,
+            }))
+            .collect::<Vec<_>>(),
+    })
+}
+
+/// `locap.clean(take, ...)`: swapped labels undone, outliers removed and refilled, every gap
+/// between captured samples filled (`locap clean`, same defaults). Returns the cleaned take;
+/// its `report` is what `locap clean` prints, and writing it as C3D records the changes in the
+/// `LOCAP` group.
+#[pyfunction]
+#[pyo3(signature = (
+    take, *, method = "edm", models = Vec::new(), neighbours = 6, ranking = "variance", outliers = true,
+    body_threshold_m_s2 = OutlierConfig::default().body_threshold_m_s2,
+    hand_threshold_m_s2 = OutlierConfig::default().hand_threshold_m_s2,
+))]
+#[allow(clippy::too_many_arguments)] // Python keyword arguments, one per CLI flag.
+pub fn clean(
+    py: Python<'_>,
+    take: PyRef<'_, PyTake>,
+    method: &str,
+    models: Vec<PathBuf>,
+    neighbours: usize,
+    ranking: &str,
+    outliers: bool,
+    body_threshold_m_s2: f64,
+    hand_threshold_m_s2: f64,
+) -> PyResult<PyTake> {
+    let (fill, neural) = fill_method(method)?;
+    if !neural && !models.is_empty() {
+        return Err(usage("models are only used with method=\"neural\""));
+    }
+    if !(1..=locap_nn::limits::MAX_NEIGHBOURS).contains(&neighbours) {
+        return Err(usage(format!("neighbours {neighbours}: must be 1 to {}", locap_nn::limits::MAX_NEIGHBOURS)));
+    }
+    let config = CleanConfig {
+        swaps: outliers.then(SwapConfig::default),
+        outliers: outliers.then(|| OutlierConfig {
+            body_threshold_m_s2,
+            hand_threshold_m_s2,
+            ..OutlierConfig::default()
+        }),
+        fill: FillConfig { method: fill, neighbours, selection: selection(ranking)? },
+    };
+    positive("body_threshold_m_s2", body_threshold_m_s2)?;
+    positive("hand_threshold_m_s2", hand_threshold_m_s2)?;
+    let model_bytes: Vec<(String, Vec<u8>)> = models
+        .iter()
+        .map(|p| p.file_name().unwrap_or_default().to_string_lossy().into_owned())
+        .zip(read_models(&models)?)
+        .collect();
+    // A bad model is one clear error before any work, as in the CLI.
+    for ((_, bytes), path) in model_bytes.iter().zip(&models) {
+        Refiner::from_bytes(bytes, &Default::default())
+            .with_context(|| path.display().to_string())
+            .map_err(|e| failure(Some(path), &e))?;
+    }
+    let inner: &PyTake = &take;
+    let cleaned = py
+        .detach(|| -> anyhow::Result<Cleaned> {
+            let filler: Box<dyn Filler> =
+                if neural { neural_filler(&inner.take, &model_bytes)? } else { Box::new(config.fill) };
+            Ok(locap_clean::clean_with(&inner.take, &config, filler.as_ref())?)
+        })
+        .map_err(|e| failure(inner.path.as_deref(), &e))?;
+    let mut out = inner.derived(cleaned.take().clone());
+    out.record = Some(cleaned.provenance());
+    out.report = Some(clean_report(&cleaned));
+    Ok(out)
+}
+
+/// `locap.label(raw, template, ...)`: names the points of a raw take online from a labeled
+/// template take (or the path of one), as `locap label`: one column per template marker,
+/// missing where no point was labeled; ghosts dropped, or kept as `*N` with
+/// `keep_unlabeled=True`. `method`: "ours" (soft graph matching), "ugm" or "cp".
+#[pyfunction]
+#[pyo3(signature = (
+    raw, template, *, template_frame = None, fit_distance_mm = FitConfig::default().accept_mm,
+    keep_unlabeled = false, method = "ours",
+))]
+pub fn label(
+    py: Python<'_>,
+    raw: PyRef<'_, PyTake>,
+    template: &Bound<'_, PyAny>,
+    template_frame: Option<usize>,
+    fit_distance_mm: f64,
+    keep_unlabeled: bool,
+    method: &str,
+) -> PyResult<PyTake> {
+    let template = match template.cast::<PyTake>() {
+        Ok(take) => take.borrow().clone(),
+        Err(_) => {
+            let path: PathBuf = template.extract()?;
+            py.detach(|| PyTake::read_path(&path)).map_err(|e| failure(Some(&path), &e))?
+        }
+    };
+    let method = match method {
+        "ours" => locap_label::Method::SoftGraph,
+        "ugm" => locap_label::Method::Unary,
+        "cp" => locap_label::Method::ClosestPoint,
+        other => return Err(usage(format!("method {other:?}: one of ours, ugm, cp"))),
+    };
+    let config = LabelConfig {
+        fit: FitConfig { accept_mm: positive("fit_distance_mm", fit_distance_mm)?, ..FitConfig::default() },
+        keep_unlabeled,
+        ..LabelConfig::with_method(method)
+    };
+    let template_name = template.name();
+    let built = Template::from_take(&template.take, template_frame)
+        .with_context(|| template_name.clone())
+        .map_err(|e| failure(template.path.as_deref(), &e))?;
+    let inner: &PyTake = &raw;
+    let labeled = py
+        .detach(|| locap_label::label_take(&inner.take, &built, &config))
+        .with_context(|| inner.name())
+        .map_err(|e| failure(inner.path.as_deref(), &e))?;
+    let mut out = inner.derived(labeled.take.clone());
+    out.labeled = Some(format!("{} template {template_name}", config.method.name()));
+    let samples = (labeled.labels.frame_count() * built.marker_count()).max(1);
+    out.report = Some(json!({
+        "frames": labeled.labels.frame_count(),
+        "markers": built.marker_count(),
+        "labeled_samples": labeled.labeled_samples(),
+        "labeled_fraction": labeled.labeled_samples() as f64 / samples as f64,
+        "unlabeled_points": labeled.unlabeled_points(),
+        "fit_rms_mm": labeled.fit.rms_mm,
+    }));
+    Ok(out)
+}
+
+/// Skeleton motion solved from markers.
+#[pyclass(name = "Motion", module = "locap", frozen)]
+pub struct PyMotion {
+    motion: Motion,
+    cleaned: PyTake,
+}
+
+/// `locap.solve(take, ...)`: the whole `locap solve` pipeline (swaps, outliers, EDM fill
+/// refined by the shipped refiner when it fits the take, then the motion solver). `model`: a
+/// solver from `locap train solve` (default: the built-in CMU 41-marker solver); `refiner`: a
+/// refiner model (default: the shipped ones that fit); `no_refiner`: EDM alone.
+#[pyfunction]
+#[pyo3(signature = (take, *, model = None, refiner = None, no_refiner = false))]
+pub fn solve(
+    py: Python<'_>,
+    take: PyRef<'_, PyTake>,
+    model: Option<PathBuf>,
+    refiner: Option<PathBuf>,
+    no_refiner: bool,
+) -> PyResult<PyMotion> {
+    if refiner.is_some() && no_refiner {
+        return Err(usage("refiner and no_refiner=True exclude each other"));
+    }
+    let model_bytes = read_models(model.as_slice())?.pop();
+    let refiner_bytes = read_models(refiner.as_slice())?.pop();
+    let load = |device: &_| match &model_bytes {
+        Some(bytes) => Solver::from_bytes(bytes, device),
+        None => locap_nn::shipped::solver(device),
+    };
+    // The models are checked once up front, so a bad file names itself, not the take.
+    let device = Default::default();
+    load(&device)
+        .with_context(|| model.as_ref().map_or("the built-in solver".into(), |p| p.display().to_string()))
+        .map_err(|e| failure(model.as_deref(), &e))?;
+    if let (Some(bytes), Some(path)) = (&refiner_bytes, &refiner) {
+        Refiner::from_bytes(bytes, &device)
+            .with_context(|| path.display().to_string())
+            .map_err(|e| failure(Some(path), &e))?;
+    }
+    let inner: &PyTake = &take;
+    let (motion, cleaned) = py
+        .detach(|| -> anyhow::Result<(Motion, Cleaned)> {
+            let device = Default::default();
+            let solver = load(&device)?;
+            let filler: Box<dyn Filler> = match (&refiner_bytes, no_refiner) {
+                (Some(bytes), _) => Box::new(Refiner::from_bytes(bytes, &device)?),
+                (None, true) => Box::new(FillConfig::default()),
+                (None, false) => match locap_nn::shipped::refiners_for(&inner.take, &device)? {
+                    fitting if fitting.is_empty() => Box::new(FillConfig::default()),
+                    fitting => Box::new(fitting),
+                },
+            };
+            Ok(solver.solve(&inner.take, filler.as_ref())?)
+        })
+        .map_err(|e| failure(inner.path.as_deref(), &e))?;
+    let mut markers = inner.derived(cleaned.take().clone());
+    let mut record = cleaned.provenance();
+    // Recorded as `locap solve --markers-out` records it.
+    record.method = Some(format!("locap solve: {}", cleaned.method));
+    markers.record = Some(record);
+    markers.report = Some(clean_report(&cleaned));
+    Ok(PyMotion { motion, cleaned: markers })
+}
+
+impl PyMotion {
+    fn joints(&self) -> usize {
+        self.motion.skeleton.len()
+    }
+}
+
+#[pymethods]
+impl PyMotion {
+    /// Joint names, skeleton order (parents before children).
+    #[getter]
+    fn joint_names(&self) -> Vec<String> {
+        self.motion.skeleton.joints().iter().map(|j| j.name.clone()).collect()
+    }
+
+    /// Parent index of every joint, -1 for the root.
+    #[getter]
+    fn parents(&self) -> Vec<i64> {
+        self.motion.skeleton.joints().iter().map(|j| j.parent.map_or(-1, |p| p as i64)).collect()
+    }
+
+    /// Per joint, True for BVH end sites (no rotation of their own).
+    #[getter]
+    fn end_sites(&self) -> Vec<bool> {
+        self.motion.skeleton.joints().iter().map(|j| j.is_end_site).collect()
+    }
+
+    /// Bone offsets from the parent, joints x 3, millimetres, in the skeleton's Y-up frame
+    /// (fitted to the subject, averaged over the take).
+    #[getter]
+    fn offsets_mm<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
+        let mut out = Array2::zeros((self.joints(), 3));
+        for (j, joint) in self.motion.skeleton.joints().iter().enumerate() {
+            for a in 0..3 {
+                out[[j, a]] = joint.offset_mm[a];
+            }
+        }
+        out.into_pyarray(py)
+    }
+
+    /// Local joint rotations, frames x joints x 4 unit quaternions (w, x, y, z), each relative
+    /// to its parent.
+    #[getter]
+    fn rotations<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray3<f64>> {
+        let mut out = Array3::zeros((self.motion.frame_count(), self.joints(), 4));
+        for f in 0..self.motion.frame_count() {
+            for (j, q) in self.motion.local_rotations(f).iter().enumerate() {
+                let q = q.quaternion();
+                for (a, v) in [q.w, q.i, q.j, q.k].into_iter().enumerate() {
+                    out[[f, j, a]] = v;
+                }
+            }
+        }
+        out.into_pyarray(py)
+    }
+
+    /// Root position per frame, frames x 3, millimetres, Y-up.
+    #[getter]
+    fn root_translation_mm<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
+        let mut out = Array2::zeros((self.motion.frame_count(), 3));
+        for f in 0..self.motion.frame_count() {
+            let p = self.motion.root_position_mm(f);
+            for a in 0..3 {
+                out[[f, a]] = p[a];
+            }
+        }
+        out.into_pyarray(py)
+    }
+
+    /// Global joint positions by forward kinematics, frames x joints x 3, millimetres, Y-up.
+    fn global_positions_mm<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray3<f64>> {
+        let (frames, joints) = (self.motion.frame_count(), self.joints());
+        let out = py.detach(|| {
+            let mut out = Array3::zeros((frames, joints, 3));
+            for f in 0..frames {
+                for (j, p) in self.motion.forward_kinematics(f).positions_mm.iter().enumerate() {
+                    for a in 0..3 {
+                        out[[f, j, a]] = p[a];
+                    }
+                }
+            }
+            out
+        });
+        out.into_pyarray(py)
+    }
+
+    /// Frame rate, Hz (the take's).
+    #[getter]
+    fn rate_hz(&self) -> f64 {
+        self.motion.frame_rate_hz()
+    }
+
+    /// Number of frames (the take's).
+    #[getter]
+    fn frame_count(&self) -> usize {
+        self.motion.frame_count()
+    }
+
+    /// The cleaned markers the motion was solved from (what `locap solve --markers-out`
+    /// writes).
+    #[getter]
+    fn cleaned(&self) -> PyTake {
+        self.cleaned.clone()
+    }
+
+    /// Writes the motion as BVH (`unit`: mm, cm, m or in; default cm as `locap solve`),
+    /// atomically. Raises `locap.Error` (`path: reason`).
+    #[pyo3(signature = (path, *, unit = "cm"))]
+    fn write_bvh(&self, py: Python<'_>, path: PathBuf, unit: &str) -> PyResult<()> {
+        let unit = parse_unit(unit)?;
+        py.detach(|| locap_io::bvh::write_bvh_path(&self.motion, unit, &path))
+            .map_err(|e| failure(Some(Path::new(&path)), &e.into()))
+    }
+
+    fn __repr__(&self) -> String {
+        format!(
+            "<locap.Motion: {} frames x {} joints at {} Hz>",
+            self.motion.frame_count(),
+            self.joints(),
+            self.motion.frame_rate_hz()
+        )
+    }
+}
