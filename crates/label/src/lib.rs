@@ -517,8 +517,12 @@ fn run_one_way(
     } else {
         labeler.start_fitted(template, frames.frame(0), &fit.assignment, &fit.expected_mm)?;
     }
+    // Re-acquisition fits segments: a body whose segments leave many markers out (CMU's 41,
+    // a marker or two per bone) is not fitted sure enough to re-acquire from, and on such
+    // takes re-fits cost speed for no gain.
+    let covered = |b: &body::Body| b.placeable() as f64 >= start::START_SURE_FRACTION * m as f64;
     let mut reacquirer = match (config.reacquire && config.method == Method::SoftGraph, template.body()) {
-        (true, Some(body)) => Some(reacquire::Reacquirer::new(body, m, frames.frame_rate_hz())),
+        (true, Some(body)) if covered(body) => Some(reacquire::Reacquirer::new(body, m, frames.frame_rate_hz())),
         _ => None,
     };
     let mut point = Vec::with_capacity(frames.frame_count() * m);

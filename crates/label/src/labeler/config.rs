@@ -94,7 +94,7 @@ pub struct LabelConfig {
     pub keep_unlabeled: bool,
     /// Whether a body segment lost or broken for long is fitted again ([`crate::reacquire`];
     /// whole takes only, [`crate::label_take`] and [`crate::label_frames`], with a template
-    /// that has a body).
+    /// whose body places at least 90% of its markers).
     #[serde(default = "yes")]
     pub reacquire: bool,
 }
