@@ -281,8 +281,13 @@ fn bench_label_on_the_shipped_example() {
         assert!(table.contains(method), "{table}");
     }
     let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
-    let rows = report["rows"].as_array().unwrap();
+    let all = report["rows"].as_array().unwrap();
+    // Every method from each segment's own first frame, then ours in the cross-trial case.
+    let rows: Vec<serde_json::Value> = all.iter().filter(|r| r["template"] == "own first frame").cloned().collect();
     assert_eq!(rows.len(), 2 * 2 * 3);
+    let cross: Vec<&serde_json::Value> = all.iter().filter(|r| r["template"] == "other half").collect();
+    assert_eq!(cross.len(), 2 * 2);
+    assert!(cross.iter().all(|r| r["method"] == "ours" && r["score"]["fits"].as_u64() > Some(0)), "{table}");
     // 1200 frames in 10 s segments: one segment of 42 trajectories per row.
     assert!(rows.iter().all(|r| r["score"]["trajectories"] == 42));
     let ours_120 = &rows[0];

@@ -13,12 +13,22 @@
 //!   nothing although its point is there;
 //! - the identification rate `zeta` is the fraction of trajectories with every sample correct
 //!   (strict: one wrong or missed frame spoils the trajectory);
-//! - frames per second: frames labeled per second of one core's time.
+//! - frames per second: frames labeled per second of one core's time, once tracking (the
+//!   first fit of the cross-trial case is timed on its own).
+//!
+//! # The cross-trial case
+//! A user's template is another take of the subject, not the take's own first frame. With
+//! [`LabelBenchConfig::cross_trial`], every take is also cut in two halves, and each half is
+//! labeled with the other half as template: every segment of it starts from the articulated
+//! first fit ([`locap_label::start`]: the first frame the fit is sure of, labeled forwards and
+//! backwards from there), not from true labels. These rows read `other half` in the template
+//! column; segments whose fit found no frame it was sure of are counted (`failed fits`) and
+//! score their samples as missed.
 
 use crate::gap_model::GapModel;
 use crate::unlabel::{GhostMode, UnlabelConfig, UnlabelError, Unlabeled, unlabel};
-use locap_core::Take;
-use locap_label::{LabelConfig, LabelError, Labels, Method, Start, Template, label_frames};
+use locap_core::{Take, UpAxis};
+use locap_label::{LabelConfig, LabelError, Labels, Method, Start, Template, fit_start, label_frames};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::time::Instant;
@@ -65,6 +75,9 @@ pub struct LabelBenchConfig {
     pub segment_s: f64,
     /// Methods, with their settings.
     pub methods: Vec<LabelConfig>,
+    /// Also label each half of every take with the other half as template (our method
+    /// only, started by the articulated fit).
+    pub cross_trial: bool,
     /// Seed.
     pub seed: u64,
 }
@@ -78,6 +91,7 @@ impl Default for LabelBenchConfig {
             drop: Some(GapModel::builtin()),
             segment_s: 10.0,
             methods: Method::ALL.iter().map(|&m| LabelConfig::with_method(m)).collect(),
+            cross_trial: true,
             seed: 1,
         }
     }
@@ -146,11 +160,26 @@ pub struct Score {
     pub trajectories_correct: u64,
     /// Frames labeled.
     pub frames: u64,
-    /// Seconds spent labeling.
+    /// Seconds spent labeling, once started.
     pub seconds: f64,
+    /// First fits made (cross-trial case).
+    #[serde(default)]
+    pub fits: u64,
+    /// First fits that found no frame they were sure of.
+    #[serde(default)]
+    pub failed_fits: u64,
+    /// Seconds spent on first fits.
+    #[serde(default)]
+    pub fit_seconds: f64,
 }
 
 impl Score {
+    /// The counts of `self` and `other` together.
+    fn plus(mut self, other: Score) -> Score {
+        self.add(&other);
+        self
+    }
+
     fn add(&mut self, other: &Score) {
         self.samples += other.samples;
         self.correct += other.correct;
@@ -160,6 +189,9 @@ impl Score {
         self.trajectories_correct += other.trajectories_correct;
         self.frames += other.frames;
         self.seconds += other.seconds;
+        self.fits += other.fits;
+        self.failed_fits += other.failed_fits;
+        self.fit_seconds += other.fit_seconds;
     }
 
     /// Identification rate of trajectories `zeta` (%).
@@ -213,6 +245,10 @@ pub struct Row {
     pub ghosts: String,
     /// Method name.
     pub method: String,
+    /// Where the template came from: `own first frame` (true labels of each segment's first
+    /// frame) or `other half` (the cross-trial case).
+    #[serde(default)]
+    pub template: String,
     /// Identification rate of trajectories (%).
     pub identification_rate: f64,
     /// Correct samples (%).
@@ -223,6 +259,9 @@ pub struct Row {
     pub missed_percent: f64,
     /// Frames per second (one core).
     pub frames_per_second: f64,
+    /// Mean time of one first fit (ms; cross-trial rows).
+    #[serde(default)]
+    pub fit_ms: f64,
     /// Raw counts.
     pub score: Score,
 }
@@ -244,31 +283,67 @@ pub struct LabelBenchReport {
     pub rows: Vec<Row>,
 }
 
+/// One take (or half of one) unlabeled at one rate and ghost count, with its template.
+struct Case<'a> {
+    name: &'a String,
+    template: Template,
+    /// Whether the template is the other half of the take (cross-trial) rather than the take.
+    cross: bool,
+    up: UpAxis,
+    rate: usize,
+    ghosts: usize,
+    unlabeled: Unlabeled,
+}
+
 /// Runs the benchmark; jobs (take x rate x ghosts x segment) run on all cores, each method
 /// timed on its own.
 pub fn run(takes: &[(String, Take)], config: &LabelBenchConfig) -> Result<LabelBenchReport, LabelBenchError> {
     config.validate()?;
+    let ours = config.methods.iter().position(|m| m.method == Method::SoftGraph);
     let mut cases = Vec::new();
     for (t, (name, take)) in takes.iter().enumerate() {
-        let template =
-            Template::from_take(take, None).map_err(|error| LabelBenchError::Label { take: name.clone(), error })?;
-        for (r, &rate) in config.frame_rates_hz.iter().enumerate() {
-            for (g, &ghosts) in config.ghosts.iter().enumerate() {
-                let unlabel_config = UnlabelConfig {
-                    frame_rate_hz: Some(rate.min(take.frame_rate_hz())),
-                    ghosts: ghosts.count(template.marker_count()),
-                    ghost_mode: config.ghost_mode,
-                    drop: config.drop.clone(),
-                    // From the take, rate and ghost count themselves (not their places in the
-                    // lists), so a setting gets the same points whatever else is run with it.
-                    seed: config.seed
-                        ^ ((t as u64) << 40)
-                        ^ (((rate * 1000.0).round() as u64) << 12)
-                        ^ ghosts.count(template.marker_count()) as u64,
-                };
-                let unlabeled = unlabel(take, &unlabel_config)
-                    .map_err(|error| LabelBenchError::Unlabel { take: name.clone(), error })?;
-                cases.push((name, template.clone(), r, g, unlabeled));
+        let template_of = |take: &Take| {
+            Template::from_take(take, None).map_err(|error| LabelBenchError::Label { take: name.clone(), error })
+        };
+        let template = template_of(take)?;
+        // (template, labeled source, seed tag): the take itself, then its halves the other
+        // way round.
+        let mut sources = vec![(template, take.clone(), 0u64)];
+        let half = take.frame_count() / 2;
+        if config.cross_trial && ours.is_some() && half >= 2 {
+            let (first, second) = (take.slice_frames(0..half), take.slice_frames(half..take.frame_count()));
+            sources.push((template_of(&second)?, first.clone(), 1));
+            sources.push((template_of(&first)?, second, 2));
+        }
+        for (template, source, tag) in sources {
+            for (r, &rate) in config.frame_rates_hz.iter().enumerate() {
+                for (g, &ghosts) in config.ghosts.iter().enumerate() {
+                    let unlabel_config = UnlabelConfig {
+                        frame_rate_hz: Some(rate.min(source.frame_rate_hz())),
+                        ghosts: ghosts.count(template.marker_count()),
+                        ghost_mode: config.ghost_mode,
+                        drop: config.drop.clone(),
+                        // From the take, rate and ghost count themselves (not their places in
+                        // the lists), so a setting gets the same points whatever else is run
+                        // with it.
+                        seed: config.seed
+                            ^ ((t as u64) << 40)
+                            ^ (((rate * 1000.0).round() as u64) << 12)
+                            ^ ghosts.count(template.marker_count()) as u64
+                            ^ (tag << 56),
+                    };
+                    let unlabeled = unlabel(&source, &unlabel_config)
+                        .map_err(|error| LabelBenchError::Unlabel { take: name.clone(), error })?;
+                    cases.push(Case {
+                        name,
+                        template: template.clone(),
+                        cross: tag > 0,
+                        up: take.up_axis,
+                        rate: r,
+                        ghosts: g,
+                        unlabeled,
+                    });
+                }
             }
         }
     }
@@ -276,8 +351,8 @@ pub fn run(takes: &[(String, Take)], config: &LabelBenchConfig) -> Result<LabelB
         .iter()
         .enumerate()
         .flat_map(|(c, case)| {
-            let frames = case.4.frames.frame_count();
-            let length = ((config.segment_s * case.4.frames.frame_rate_hz()).round() as usize).max(2);
+            let frames = case.unlabeled.frames.frame_count();
+            let length = ((config.segment_s * case.unlabeled.frames.frame_rate_hz()).round() as usize).max(2);
             (0..frames).step_by(length).map(move |start| (c, start..(start + length).min(frames)))
         })
         .filter(|(_, range)| range.len() >= 2)
@@ -285,35 +360,66 @@ pub fn run(takes: &[(String, Take)], config: &LabelBenchConfig) -> Result<LabelB
     let results: Vec<Result<Vec<Score>, LabelBenchError>> = jobs
         .par_iter()
         .map(|(c, range)| {
-            let (name, template, _, _, unlabeled) = &cases[*c];
-            label_segment(template, unlabeled, range.clone(), &config.methods)
-                .map_err(|error| LabelBenchError::Label { take: (*name).clone(), error })
+            let case = &cases[*c];
+            let scores = match (case.cross, ours) {
+                (true, Some(k)) => {
+                    label_segment_fitted(&case.template, &case.unlabeled, range.clone(), &config.methods[k], case.up)
+                        .map(|s| vec![s])
+                }
+                _ => label_segment(&case.template, &case.unlabeled, range.clone(), &config.methods),
+            };
+            scores.map_err(|error| LabelBenchError::Label { take: case.name.clone(), error })
         })
         .collect();
-    let mut totals = vec![Score::default(); config.frame_rates_hz.len() * config.ghosts.len() * config.methods.len()];
+    let per_setting = config.frame_rates_hz.len() * config.ghosts.len();
+    let mut totals = vec![Score::default(); per_setting * config.methods.len()];
+    let mut cross = vec![Score::default(); per_setting];
     for ((c, _), result) in jobs.iter().zip(results) {
-        let (_, _, r, g, _) = &cases[*c];
+        let case = &cases[*c];
+        let setting = case.rate * config.ghosts.len() + case.ghosts;
         for (k, s) in result?.iter().enumerate() {
-            totals[(r * config.ghosts.len() + g) * config.methods.len() + k].add(s);
+            if case.cross {
+                cross[setting].add(s);
+            } else {
+                totals[setting * config.methods.len() + k].add(s);
+            }
         }
     }
+    let row = |rate: f64, ghosts: &GhostCount, method: &str, template: &str, s: Score| {
+        let percent = |n: u64| 100.0 * n as f64 / s.samples.max(1) as f64;
+        Row {
+            frame_rate_hz: rate,
+            ghosts: ghosts.to_string(),
+            method: method.to_string(),
+            template: template.to_string(),
+            identification_rate: s.identification_rate(),
+            accuracy: s.accuracy(),
+            wrong_percent: percent(s.wrong),
+            missed_percent: percent(s.missed),
+            frames_per_second: s.frames_per_second(),
+            fit_ms: 1000.0 * s.fit_seconds / s.fits.max(1) as f64,
+            score: s,
+        }
+    };
     let mut rows = Vec::new();
     for (r, &rate) in config.frame_rates_hz.iter().enumerate() {
         for (g, ghosts) in config.ghosts.iter().enumerate() {
+            let setting = r * config.ghosts.len() + g;
             for (k, method) in config.methods.iter().enumerate() {
-                let s = totals[(r * config.ghosts.len() + g) * config.methods.len() + k];
-                let percent = |n: u64| 100.0 * n as f64 / s.samples.max(1) as f64;
-                rows.push(Row {
-                    frame_rate_hz: rate,
-                    ghosts: ghosts.to_string(),
-                    method: method.method.name().to_string(),
-                    identification_rate: s.identification_rate(),
-                    accuracy: s.accuracy(),
-                    wrong_percent: percent(s.wrong),
-                    missed_percent: percent(s.missed),
-                    frames_per_second: s.frames_per_second(),
-                    score: s,
-                });
+                rows.push(row(
+                    rate,
+                    ghosts,
+                    method.method.name(),
+                    OWN_FIRST_FRAME,
+                    totals[setting * config.methods.len() + k],
+                ));
+            }
+        }
+    }
+    if cross.iter().any(|s| s.samples > 0) {
+        for (r, &rate) in config.frame_rates_hz.iter().enumerate() {
+            for (g, ghosts) in config.ghosts.iter().enumerate() {
+                rows.push(row(rate, ghosts, Method::SoftGraph.name(), OTHER_HALF, cross[r * config.ghosts.len() + g]));
             }
         }
     }
@@ -325,6 +431,41 @@ pub fn run(takes: &[(String, Take)], config: &LabelBenchConfig) -> Result<LabelB
         real_occlusions: config.drop.is_some(),
         rows,
     })
+}
+
+/// [`Row::template`] of segments started from their first frame's true labels.
+pub const OWN_FIRST_FRAME: &str = "own first frame";
+/// [`Row::template`] of the cross-trial case.
+pub const OTHER_HALF: &str = "other half";
+
+/// Labels one segment with `config`, started by the articulated first fit (timed on its
+/// own); a fit that is sure of no frame leaves every sample missed.
+fn label_segment_fitted(
+    template: &Template,
+    unlabeled: &Unlabeled,
+    range: std::ops::Range<usize>,
+    config: &LabelConfig,
+    up: UpAxis,
+) -> Result<Score, LabelError> {
+    let frames = unlabeled.frames.slice_frames(range.clone());
+    let by_frame = unlabeled.truth_by_frame();
+    let truth = &by_frame[range];
+    let started = Instant::now();
+    let fit = fit_start(&frames, template, up, &config.fit);
+    let fit_seconds = started.elapsed().as_secs_f64();
+    let fitted = Score { fits: 1, fit_seconds, ..Score::default() };
+    let fit = match fit {
+        Ok(fit) => fit,
+        Err(LabelError::FirstFrame(_)) => {
+            let nothing = Labels::from_frames(template.marker_count(), &vec![Vec::new(); truth.len()]);
+            return Ok(Score { failed_fits: 1, ..fitted.plus(score(truth, &nothing, template.marker_count())) });
+        }
+        Err(e) => return Err(e),
+    };
+    let started = Instant::now();
+    let (labels, _) = label_frames(&frames, template, config, Start::Fitted(&fit), None)?;
+    let seconds = started.elapsed().as_secs_f64();
+    Ok(Score { seconds, ..fitted.plus(score(truth, &labels, template.marker_count())) })
 }
 
 /// Labels one segment with every method, from the true labels of its first frame.
@@ -366,23 +507,43 @@ impl LabelBenchReport {
         );
         let _ = writeln!(
             s,
-            "{:>6} {:>6} {:<6} {:>8} {:>9} {:>8} {:>8} {:>12} {:>8}",
-            "fps", "ghosts", "method", "zeta %", "samples %", "wrong %", "missed %", "frames/s", "trajs"
+            "{:>6} {:>6} {:<6} {:<15} {:>8} {:>9} {:>8} {:>8} {:>12} {:>8} {:>8}",
+            "fps",
+            "ghosts",
+            "method",
+            "template",
+            "zeta %",
+            "samples %",
+            "wrong %",
+            "missed %",
+            "frames/s",
+            "trajs",
+            "fit ms"
         );
         for r in &self.rows {
+            let fit = if r.score.fits > 0 { format!("{:.1}", r.fit_ms) } else { "-".to_string() };
             let _ = writeln!(
                 s,
-                "{:>6} {:>6} {:<6} {:>8.2} {:>9.3} {:>8.3} {:>8.3} {:>12.0} {:>8}",
+                "{:>6} {:>6} {:<6} {:<15} {:>8.2} {:>9.3} {:>8.3} {:>8.3} {:>12.0} {:>8} {:>8}",
                 r.frame_rate_hz,
                 r.ghosts,
                 r.method,
+                r.template,
                 r.identification_rate,
                 r.accuracy,
                 r.wrong_percent,
                 r.missed_percent,
                 r.frames_per_second,
-                r.score.trajectories
+                r.score.trajectories,
+                fit
             );
+            if r.score.failed_fits > 0 {
+                let _ = writeln!(
+                    s,
+                    "       {} of {} first fits were sure of no frame: their samples count as missed",
+                    r.score.failed_fits, r.score.fits
+                );
+            }
         }
         s
     }
@@ -443,12 +604,19 @@ mod tests {
             ..LabelBenchConfig::default()
         };
         let report = run(&[("body".into(), take)], &config).unwrap();
-        assert_eq!(report.rows.len(), 3);
+        // Three methods from each segment's first frame, then ours with the other half of
+        // the take as template.
+        assert_eq!(report.rows.len(), 4);
         let ours = &report.rows[0];
-        assert_eq!(ours.method, "ours");
+        assert_eq!((ours.method.as_str(), ours.template.as_str()), ("ours", OWN_FIRST_FRAME));
         assert_eq!(ours.score.samples, 60 * 6);
         assert!(ours.accuracy > 99.0, "{}", report.table());
         assert!(report.table().contains("ugm"));
+        let cross = &report.rows[3];
+        assert_eq!((cross.method.as_str(), cross.template.as_str()), ("ours", OTHER_HALF));
+        // Both halves, 30 frames each; each fitted once.
+        assert_eq!((cross.score.samples, cross.score.fits), (60 * 6, 2));
+        assert!(cross.accuracy > 95.0, "{}", report.table());
     }
 
     /// `bench label --ghosts 100000` ran without bound: refused before any take is touched.

@@ -127,6 +127,16 @@ impl PointFrames {
         part
     }
 
+    /// Frames `range` in reverse order, for labeling backwards in time from a frame later
+    /// than the first (the first fit may only be sure there).
+    pub fn reversed(&self, range: std::ops::Range<usize>) -> PointFrames {
+        let mut part = PointFrames::with_rate(self.frame_rate_hz);
+        for f in range.rev() {
+            part.push_frame(self.columns(f).iter().copied().zip(self.frame(f).iter().copied()));
+        }
+        part
+    }
+
     /// Total number of points over all frames.
     pub fn point_count(&self) -> usize {
         self.points_mm.len()
@@ -152,6 +162,8 @@ mod tests {
         assert_eq!(PointFrames::try_from_take(&take).unwrap(), frames);
         let second = frames.slice_frames(1..2);
         assert_eq!((second.frame_count(), second.frame(0), second.columns(0)), (1, frames.frame(1), &[1u32][..]));
+        let back = frames.reversed(0..2);
+        assert_eq!((back.frame(0), back.frame(1)), (frames.frame(1), frames.frame(0)));
     }
 
     /// A take beyond the frame ceiling is an error before anything is counted or reserved.

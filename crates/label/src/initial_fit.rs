@@ -19,18 +19,39 @@ use locap_core::{UpAxis, Vec3};
 use nalgebra::{Rotation3, Unit};
 use serde::{Deserialize, Serialize};
 
+/// How labeling finds its first labels.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum FitMethod {
+    /// Fit the template's articulated body ([`crate::pose_fit`]) to the first frame where the
+    /// fit is sure, whatever the pose; templates too short to learn a body fall back to
+    /// [`FitMethod::Rigid`].
+    #[default]
+    Articulated,
+    /// Fit the template's reference frame rigidly to the first frame (this module): the take
+    /// must start in the template's pose.
+    Rigid,
+}
+
 /// Settings of the first-frame fit.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct FitConfig {
-    /// A template marker is matched to a point only within this distance after the fit (mm).
+    /// The fit.
+    #[serde(default)]
+    pub method: FitMethod,
+    /// Rigid fit: a template marker is matched to a point only within this distance after
+    /// the fit (mm). The articulated fit takes each marker's tolerance from the template.
     pub accept_mm: f64,
-    /// At least this fraction of the template's visible markers must be matched.
+    /// Rigid fit: at least this fraction of the template's visible markers must be matched.
+    /// Articulated fit: labeling starts at the first frame where the fit is sure of 90% of
+    /// the markers it can place, else at the frame where it is sure of the most, if that is
+    /// at least this fraction of them ([`crate::start`]).
     pub min_matched_fraction: f64,
 }
 
 impl Default for FitConfig {
     fn default() -> FitConfig {
-        FitConfig { accept_mm: 60.0, min_matched_fraction: 0.6 }
+        FitConfig { method: FitMethod::Articulated, accept_mm: 60.0, min_matched_fraction: 0.6 }
     }
 }
 
@@ -43,6 +64,13 @@ pub struct InitialFit {
     pub transform: RigidTransform,
     /// Root mean square distance of the matched markers after the fit (mm).
     pub rms_mm: f64,
+    /// The frame fitted (labeling runs forwards and backwards from it).
+    pub frame: usize,
+    /// Markers whose place the fit is sure of (all the matched ones for the rigid fit);
+    /// the others are left to tracking and re-acquisition.
+    pub sure_markers: usize,
+    /// Where the fit expects each marker it is sure of (mm), also without a point.
+    pub expected_mm: Vec<Option<Vec3>>,
 }
 
 const HEADINGS: usize = 12;
@@ -114,7 +142,9 @@ pub fn fit_first_frame(
         )));
     }
     let rms_mm = (pairs.iter().map(|(a, b)| (a - b).norm_squared()).sum::<f64>() / pairs.len() as f64).sqrt();
-    Ok(InitialFit { assignment: matched, transform, rms_mm })
+    let sure_markers = pairs.len();
+    let expected_mm = matched.iter().map(|_| None).collect();
+    Ok(InitialFit { assignment: matched, transform, rms_mm, frame: 0, sure_markers, expected_mm })
 }
 
 /// Neighbours whose distance spread over the template is at most this (mm) move with a

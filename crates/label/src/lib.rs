@@ -32,15 +32,19 @@
 //! ```
 
 pub mod assignment;
+pub mod body;
 pub mod cloud;
 pub mod ik;
 pub mod initial_fit;
 pub mod kalman;
 pub mod labeler;
+pub mod pose_fit;
+pub mod reacquire;
+pub mod start;
 pub mod template;
 
 pub use cloud::PointFrames;
-pub use initial_fit::{FitConfig, InitialFit, fit_first_frame};
+pub use initial_fit::{FitConfig, FitMethod, InitialFit, fit_first_frame};
 pub use labeler::{LabelConfig, Labeler, Method};
 pub use template::Template;
 
@@ -70,6 +74,8 @@ pub enum Start<'a> {
     Fit(FitConfig, UpAxis),
     /// The first frame's labels are known: for each template marker, its point index.
     Known(&'a [Option<usize>]),
+    /// A fit made already ([`fit_start`]): labeling runs from its frame.
+    Fitted(&'a InitialFit),
 }
 
 /// Labels of a whole take: for every frame and template marker, the index of its point in
@@ -164,29 +170,122 @@ impl Labels {
     pub fn edge_consistency(&self, frames: &PointFrames, template: &Template, tolerance_mm: f64) -> (usize, usize) {
         let (mut consistent, mut checked) = (0, 0);
         for f in 0..self.frame_count() {
-            let points = frames.frame(f);
-            for (i, edges) in template.edges().iter().enumerate() {
-                let Some(p) = self.get(f, i) else { continue };
-                let mut any = false;
-                let mut ok = true;
-                for e in edges.iter().filter(|e| e.std_mm <= 12.0) {
-                    if let Some(q) = self.get(f, e.neighbour) {
-                        any = true;
-                        let d = (points[p] - points[q]).norm();
-                        ok &= (d - e.length_mm).abs() <= tolerance_mm.max(3.0 * e.std_mm);
+            for i in 0..self.markers {
+                match self.check_sample(frames, template, tolerance_mm, f, i) {
+                    Some(EdgeCheck::Kept) => {
+                        checked += 1;
+                        consistent += 1;
                     }
-                }
-                if any {
-                    checked += 1;
-                    consistent += usize::from(ok);
+                    Some(EdgeCheck::Broken) => checked += 1,
+                    Some(EdgeCheck::Unchecked) | None => {}
                 }
             }
         }
         (consistent, checked)
     }
 
+    /// How sure each label is, from the same check as [`Labels::edge_consistency`]: a labeled
+    /// sample is *confirmed* when it keeps every edge to its labeled rigid neighbours, and
+    /// *uncertain* when it breaks one or has no labeled rigid neighbour to be checked by.
+    pub fn confidence(&self, frames: &PointFrames, template: &Template, tolerance_mm: f64) -> Confidence {
+        let m = self.markers;
+        let mut per_marker = vec![MarkerConfidence::default(); m];
+        let mut uncertain = vec![false; self.point.len()];
+        for f in 0..self.frame_count() {
+            for (i, counts) in per_marker.iter_mut().enumerate() {
+                let Some(check) = self.check_sample(frames, template, tolerance_mm, f, i) else { continue };
+                counts.labeled += 1;
+                match check {
+                    EdgeCheck::Kept => counts.confirmed += 1,
+                    EdgeCheck::Broken => counts.broken += 1,
+                    EdgeCheck::Unchecked => {}
+                }
+                uncertain[f * m + i] = check != EdgeCheck::Kept;
+            }
+        }
+        let rejected_points = frames.point_count().saturating_sub(per_marker.iter().map(|c| c.labeled).sum());
+        Confidence { per_marker, uncertain, rejected_points }
+    }
+
+    /// The edge check of marker `i`'s label in frame `f`; `None` when it has no label.
+    fn check_sample(
+        &self,
+        frames: &PointFrames,
+        template: &Template,
+        tolerance_mm: f64,
+        f: usize,
+        i: usize,
+    ) -> Option<EdgeCheck> {
+        let points = frames.frame(f);
+        let p = self.get(f, i)?;
+        let mut any = false;
+        let mut ok = true;
+        for e in template.edges()[i].iter().filter(|e| e.std_mm <= 12.0) {
+            if let Some(q) = self.get(f, e.neighbour) {
+                any = true;
+                let d = (points[p] - points[q]).norm();
+                ok &= (d - e.length_mm).abs() <= tolerance_mm.max(3.0 * e.std_mm);
+            }
+        }
+        Some(match (any, ok) {
+            (false, _) => EdgeCheck::Unchecked,
+            (true, true) => EdgeCheck::Kept,
+            (true, false) => EdgeCheck::Broken,
+        })
+    }
+
     fn labeled_in(&self, frame: usize) -> usize {
         (0..self.markers).filter(|&m| self.get(frame, m).is_some()).count()
+    }
+}
+
+/// What the edge check says of one label.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum EdgeCheck {
+    Kept,
+    Broken,
+    Unchecked,
+}
+
+/// Labeled samples of one template marker, by what its rigid edges say of them.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct MarkerConfidence {
+    /// Samples that took a point.
+    pub labeled: usize,
+    /// Of those, samples that keep every edge to their labeled rigid neighbours.
+    pub confirmed: usize,
+    /// Of those, samples that break an edge (the others had no labeled rigid neighbour).
+    pub broken: usize,
+}
+
+impl MarkerConfidence {
+    /// The share of the marker's labels its edges confirm (0 to 1); `None` for a marker
+    /// never labeled.
+    pub fn score(&self) -> Option<f64> {
+        (self.labeled > 0).then(|| self.confirmed as f64 / self.labeled as f64)
+    }
+}
+
+/// How sure the labels of a take are ([`Labels::confidence`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Confidence {
+    /// Per template marker.
+    pub per_marker: Vec<MarkerConfidence>,
+    /// Per sample (`[frame * markers + marker]`): labeled but not confirmed.
+    pub uncertain: Vec<bool>,
+    /// Raw points no marker took (ghosts, and markers the labeler refused or lost).
+    pub rejected_points: usize,
+}
+
+impl Confidence {
+    /// Labeled samples, all markers together.
+    pub fn labeled(&self) -> usize {
+        self.per_marker.iter().map(|c| c.labeled).sum()
+    }
+
+    /// Labeled samples not confirmed by their edges.
+    pub fn uncertain_samples(&self) -> usize {
+        self.per_marker.iter().map(|c| c.labeled - c.confirmed).sum()
     }
 }
 
@@ -261,8 +360,8 @@ fn label_take_with(
         UpAxis::Y => m.clone(),
     });
     check_size(&frames, template)?;
-    let fit = fit_first_frame(template, frames.frame(0), raw.up_axis, &config.fit)?;
-    let labels = run(&frames, template, config, &fit.assignment, model)?;
+    let fit = fit_start(&frames, template, raw.up_axis, &config.fit)?;
+    let labels = run(&frames, template, config, &fit, model)?;
     let take = labels.to_take(&frames, template.names(), Some(raw), config.keep_unlabeled);
     Ok(Labeled { take, labels, frames, fit })
 }
@@ -278,14 +377,81 @@ pub fn label_frames(
     pose_model: Option<ik::MarkerModel>,
 ) -> Result<(Labels, Option<InitialFit>), LabelError> {
     check_size(frames, template)?;
-    let (initial, fit) = match start {
+    match start {
         Start::Fit(fit_config, up) => {
-            let fit = fit_first_frame(template, frames.frame(0), up, &fit_config)?;
-            (fit.assignment.clone(), Some(fit))
+            let fit = fit_start(frames, template, up, &fit_config)?;
+            Ok((run(frames, template, config, &fit, pose_model)?, Some(fit)))
         }
-        Start::Known(initial) => (initial.to_vec(), None),
+        Start::Fitted(fit) => {
+            if fit.assignment.len() != template.marker_count() || fit.frame >= frames.frame_count() {
+                return Err(LabelError::Config(format!(
+                    "a fit of {} markers at frame {} for {} template markers and {} frames",
+                    fit.assignment.len(),
+                    fit.frame,
+                    template.marker_count(),
+                    frames.frame_count()
+                )));
+            }
+            Ok((run(frames, template, config, fit, pose_model)?, Some(fit.clone())))
+        }
+        Start::Known(initial) => {
+            if initial.len() != template.marker_count() {
+                return Err(LabelError::Config(format!(
+                    "{} initial labels for {} template markers",
+                    initial.len(),
+                    template.marker_count()
+                )));
+            }
+            let known = InitialFit {
+                assignment: initial.to_vec(),
+                transform: locap_clean::procrustes::RigidTransform {
+                    rotation: nalgebra::Rotation3::identity(),
+                    translation: locap_core::Vec3::zeros(),
+                },
+                rms_mm: 0.0,
+                frame: 0,
+                sure_markers: initial.iter().flatten().count(),
+                // The template's reference pose places the markers not in the frame.
+                expected_mm: Vec::new(),
+            };
+            Ok((run(frames, template, config, &known, pose_model)?, None))
+        }
+    }
+}
+
+/// The first labels of `frames` (whose vertical axis is `up`): the articulated fit
+/// ([`start::find_start`]) where the template has a body and `config` asks for it, else the
+/// rigid fit of the template's reference frame to the first frame ([`fit_first_frame`]).
+/// An articulated fit sure of less than [`start::START_SURE_FRACTION`] of the body gives way
+/// to a rigid fit that succeeds.
+///
+/// # Errors
+/// [`LabelError::FirstFrame`] when the fit is sure of no frame tried.
+pub fn fit_start(
+    frames: &PointFrames,
+    template: &Template,
+    up: UpAxis,
+    config: &FitConfig,
+) -> Result<InitialFit, LabelError> {
+    let Some(body) = template.body().filter(|_| config.method == FitMethod::Articulated) else {
+        return fit_first_frame(template, frames.frame(0), up, config);
     };
-    Ok((run(frames, template, config, &initial, pose_model)?, fit))
+    match start::find_start(frames, template, body, config) {
+        Ok(fit) if fit.sure_markers as f64 >= start::START_SURE_FRACTION * body.placeable() as f64 => Ok(fit),
+        // A body of sparse segments (a marker or two per bone, as CMU's 41) leaves the
+        // articulated fit unsure of much of it; a take that starts in the template's pose
+        // is then better started by the rigid fit, which sees every marker at once.
+        articulated => match fit_first_frame(template, frames.frame(0), up, config) {
+            Ok(rigid) => Ok(rigid),
+            Err(rigid) => articulated.map_err(|a| {
+                let reason = |e: LabelError| match e {
+                    LabelError::FirstFrame(reason) => reason,
+                    other => other.to_string(),
+                };
+                LabelError::FirstFrame(format!("{}; rigid fit: {}", reason(a), reason(rigid)))
+            }),
+        },
+    }
 }
 
 /// A take with frames, and labels for it that fit under the ceiling of the clouds.
@@ -305,27 +471,74 @@ fn check_size(frames: &PointFrames, template: &Template) -> Result<(), LabelErro
     Ok(())
 }
 
-/// The online loop from the first frame's labels `initial` on.
+/// The online loop from the fitted frame's labels on, forwards to the end and, when the fit
+/// was made later than the first frame, backwards to the first.
 fn run(
     frames: &PointFrames,
     template: &Template,
     config: &LabelConfig,
-    initial: &[Option<usize>],
+    fit: &InitialFit,
     pose_model: Option<ik::MarkerModel>,
 ) -> Result<Labels, LabelError> {
+    let m = template.marker_count();
+    let t = frames.frame_count();
+    let k = fit.frame.min(t - 1);
+    let mut point = vec![NONE; t * m];
+    // A fit of the first frame (the usual case) labels the clouds as they are, uncopied.
+    let forward = (k > 0).then(|| frames.slice_frames(k..t));
+    let ahead = run_one_way(forward.as_ref().unwrap_or(frames), template, config, fit, pose_model.clone())?;
+    point[k * m..].copy_from_slice(&ahead);
+    if k > 0 {
+        let backward = frames.reversed(0..k + 1);
+        let behind = run_one_way(&backward, template, config, fit, pose_model)?;
+        for (i, labels) in behind.chunks(m).enumerate().skip(1) {
+            let f = k - i;
+            point[f * m..(f + 1) * m].copy_from_slice(labels);
+        }
+    }
+    Ok(Labels { markers: m, point })
+}
+
+/// The online loop over `frames` from the fit's labels of its first frame.
+fn run_one_way(
+    frames: &PointFrames,
+    template: &Template,
+    config: &LabelConfig,
+    fit: &InitialFit,
+    pose_model: Option<ik::MarkerModel>,
+) -> Result<Vec<u32>, LabelError> {
     let m = template.marker_count();
     let mut labeler = Labeler::new(template, *config, frames.frame_rate_hz())?;
     if let Some(model) = pose_model {
         labeler = labeler.with_pose_model(model, ik::IkConfig::default())?;
     }
-    labeler.start(template, frames.frame(0), initial)?;
-    let mut point = Vec::with_capacity(frames.frame_count() * m);
-    point.extend(initial.iter().map(|p| p.map_or(NONE, |p| p as u32)));
-    for f in 1..frames.frame_count() {
-        let labels = labeler.step(frames.frame(f));
-        point.extend(labels.iter().map(|p| p.unwrap_or(NONE)));
+    if fit.expected_mm.is_empty() {
+        labeler.start(template, frames.frame(0), &fit.assignment)?;
+    } else {
+        labeler.start_fitted(template, frames.frame(0), &fit.assignment, &fit.expected_mm)?;
     }
-    Ok(Labels { markers: m, point })
+    // Re-acquisition fits segments: a body whose segments leave many markers out (CMU's 41,
+    // a marker or two per bone) is not fitted sure enough to re-acquire from, and on such
+    // takes re-fits cost speed for no gain.
+    let covered = |b: &body::Body| b.placeable() as f64 >= start::START_SURE_FRACTION * m as f64;
+    let mut reacquirer = match (config.reacquire && config.method == Method::SoftGraph, template.body()) {
+        (true, Some(body)) if covered(body) => Some(reacquire::Reacquirer::new(body, m, frames.frame_rate_hz())),
+        _ => None,
+    };
+    let mut point = Vec::with_capacity(frames.frame_count() * m);
+    point.extend(fit.assignment.iter().map(|p| p.map_or(NONE, |p| p as u32)));
+    for f in 1..frames.frame_count() {
+        let points = frames.frame(f);
+        labeler.step(points);
+        if let Some(r) = &mut reacquirer {
+            let changes = r.check(points, labeler.labels());
+            if !changes.is_empty() {
+                labeler.relabel(points, &changes)?;
+            }
+        }
+        point.extend(labeler.labels().iter().map(|p| p.unwrap_or(NONE)));
+    }
+    Ok(point)
 }
 
 #[cfg(test)]

@@ -8,6 +8,7 @@
 //! markers instead, which on a body are mostly on the same segment.
 
 use crate::LabelError;
+use crate::body::Body;
 use locap_clean::neighbours::{Selection, rank_scored};
 use locap_core::{MarkerName, Take, Vec3};
 
@@ -40,6 +41,7 @@ pub struct Template {
     names: Vec<MarkerName>,
     reference_mm: Vec<Option<Vec3>>,
     edges: Vec<Vec<Edge>>,
+    body: Option<Body>,
 }
 
 impl Template {
@@ -88,8 +90,8 @@ impl Template {
         let labeled = Take::from_samples(names.clone(), &samples, take.frame_rate_hz())
             .map_err(|e| LabelError::Template(e.to_string()))?;
         let reference_mm: Vec<Option<Vec3>> = (0..keep.len()).map(|m| labeled.position_mm(reference, m)).collect();
-        let edges = rigid_edges(&labeled, RANKED_NEIGHBOURS);
-        Ok(Template { names, reference_mm, edges })
+        let (edges, body) = rigid_edges(&labeled, RANKED_NEIGHBOURS);
+        Ok(Template { names, reference_mm, edges, body })
     }
 
     /// Marker names, in the order labels are reported.
@@ -111,15 +113,32 @@ impl Template {
     pub fn edges(&self) -> &[Vec<Edge>] {
         &self.edges
     }
+
+    /// The articulated body the template take shows ([`crate::body`]): `None` for a
+    /// template too short to tell rigid neighbours from the others, or without a rigid
+    /// segment of three markers.
+    pub fn body(&self) -> Option<&Body> {
+        self.body.as_ref()
+    }
 }
 
-/// The `k` most stable neighbours of each marker with their mean distances.
-fn rigid_edges(take: &Take, k: usize) -> Vec<Vec<Edge>> {
+/// The `k` most stable neighbours of each marker with their mean distances, and the body
+/// learned from the same distance statistics.
+fn rigid_edges(take: &Take, k: usize) -> (Vec<Vec<Edge>>, Option<Body>) {
     let m = take.marker_count();
     let selection =
         if take.frame_count() >= MIN_FRAMES_FOR_VARIANCE { Selection::Variance } else { Selection::MeanDistance };
     let ranked = rank_scored(take, selection);
-    (0..m)
+    let body = (selection == Selection::Variance).then(|| {
+        let mut variance = vec![f64::INFINITY; m * m];
+        for (i, list) in ranked.iter().enumerate() {
+            for &(j, v) in list {
+                variance[i * m + j] = v;
+            }
+        }
+        Body::learn(take, &variance)
+    });
+    let edges = (0..m)
         .map(|i| {
             ranked[i]
                 .iter()
@@ -131,7 +150,8 @@ fn rigid_edges(take: &Take, k: usize) -> Vec<Vec<Edge>> {
                 .take(k)
                 .collect()
         })
-        .collect()
+        .collect();
+    (edges, body.flatten())
 }
 
 /// Mean distance between markers `i` and `j` over the frames where both are visible.

@@ -2,15 +2,27 @@
 //! sections 3 and 4; see `locap_label`), one take per job.
 //!
 //! The template is a labeled take of the same marker set (a T-pose, a range-of-motion take,
-//! or any labeled take of the subject); labeling starts by fitting its reference frame to the
-//! raw take's first frame, so the raw take must start in roughly that pose. Output: one
-//! column per template marker (missing where no point was labeled); the points no marker took
-//! (ghosts) are dropped, or kept as `*0`, `*1`, ... with `--keep-unlabeled`. Everything else in
-//! the file (analog data, parameters) is kept.
+//! or any labeled take of the subject, in any pose); labeling starts by fitting the body the
+//! template shows (rigid segments and their joints, `locap_label::body`) to the first raw
+//! frame it is sure of, whatever the pose, and runs forwards and backwards from there
+//! (`--fit rigid`: the older rigid fit of one template frame to the first frame, for takes
+//! that start in the template's pose). Output: one column per template marker (missing where
+//! no point was labeled); the points no marker took (ghosts) are dropped, or kept as `*0`,
+//! `*1`, ... with `--keep-unlabeled`. Everything else in the file (analog data, parameters)
+//! is kept.
+//!
+//! How sure the labels are is written to the take and summarised (a labeled sample is
+//! *confirmed* when it keeps its rigid edges to its labeled neighbours within 20 mm, else
+//! *uncertain*; raw points no marker took are *rejected*):
+//! - `LOCAP:LABEL_CONFIDENCE`: one line per template marker, `LABEL confidence labeled`, the
+//!   share of its labeled samples that are confirmed (0 to 1, `-` when never labeled) and how
+//!   many were labeled;
+//! - `LOCAP:LABEL_UNCERTAIN`: the uncertain samples, `LABEL first-last` per run in C3D frame
+//!   numbers, in the compact form of `LOCAP:FILLED` (`locap_core::range_list`).
 //!
 //! The labeling itself is one call, `locap_label::label_take` (or `label_take_with_pose` with
 //! `--skeleton`); this command finds the files, reads and writes them, records `LOCAP:LABELED`
-//! and prints the summary.
+//! and the confidences, and prints the summary.
 
 use crate::inputs;
 use anyhow::{Context, Result, bail};
@@ -19,7 +31,7 @@ use locap_eval::label_bench::score;
 use locap_eval::unlabel::{TRUTH_FORMAT, TruthFile};
 use locap_io::c3d;
 use locap_label::ik::{Attachment, MarkerModel};
-use locap_label::{FitConfig, LabelConfig, PointFrames, Template, label_take, label_take_with_pose};
+use locap_label::{FitConfig, FitMethod, LabelConfig, PointFrames, Template, label_take, label_take_with_pose};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
@@ -41,8 +53,12 @@ pub struct Args {
     /// frame with the most markers visible.
     #[arg(long, value_name = "N", help_heading = "Template")]
     template_frame: Option<usize>,
-    /// A template marker matches a first-frame point only within this distance after the
-    /// rigid fit (mm).
+    /// How the first labels are found: fit the template's articulated body to the first
+    /// frame it is sure of (any pose), or fit one template frame rigidly to the first frame.
+    #[arg(long, value_enum, default_value_t = FitArg::Articulated, help_heading = "Template")]
+    fit: FitArg,
+    /// With `--fit rigid`: a template marker matches a first-frame point only within this
+    /// distance after the rigid fit (mm).
     #[arg(value_parser = crate::values::positive_length_mm, long, default_value_t = FitConfig::default().accept_mm, value_name = "MM", help_heading = "Template")]
     fit_distance: f64,
     /// Output C3D file (one input) or folder.
@@ -66,6 +82,24 @@ pub struct Args {
     /// Labeling method: soft graph matching (ours), or a baseline.
     #[arg(long, value_enum, default_value_t = MethodArg::Ours, help_heading = "Labeling")]
     method: MethodArg,
+}
+
+/// First fits on the command line.
+#[derive(Debug, Clone, Copy, ValueEnum)]
+pub enum FitArg {
+    /// The template's rigid segments and joints, fitted in any pose.
+    Articulated,
+    /// One template frame, fitted rigidly: the take must start in its pose.
+    Rigid,
+}
+
+impl From<FitArg> for FitMethod {
+    fn from(f: FitArg) -> FitMethod {
+        match f {
+            FitArg::Articulated => FitMethod::Articulated,
+            FitArg::Rigid => FitMethod::Rigid,
+        }
+    }
 }
 
 /// Labeling methods on the command line.
@@ -159,7 +193,7 @@ fn label_one(
     let mut file = inputs::read_c3d(input)?;
     let raw = file.to_take().map_err(|e| e.in_file(input))?;
     let config = LabelConfig {
-        fit: FitConfig { accept_mm: args.fit_distance, ..FitConfig::default() },
+        fit: FitConfig { method: args.fit.into(), accept_mm: args.fit_distance, ..FitConfig::default() },
         keep_unlabeled: args.keep_unlabeled,
         ..LabelConfig::with_method(args.method.into())
     };
@@ -174,25 +208,88 @@ fn label_one(
         "LABELED",
         &[format!("{} template {}", config.method.name(), args.template.display())],
     );
-    c3d::write_path(&file, output)?;
-
     let m = template.marker_count();
     let t = labeled.labels.frame_count();
+    let confidence = labeled.labels.confidence(&labeled.frames, template, EDGE_TOLERANCE_MM);
+    let (lines, uncertain) = confidence_parameters(&labeled.take, template, &confidence)?;
+    file.parameters.set_strings("LOCAP", "LABEL_CONFIDENCE", &lines);
+    file.parameters.set_strings("LOCAP", "LABEL_UNCERTAIN", &uncertain);
+    c3d::write_path(&file, output)?;
+
     let (consistent, checked) = labeled.labels.edge_consistency(&labeled.frames, template, EDGE_TOLERANCE_MM);
+    let labeled_samples = confidence.labeled();
+    let uncertain_samples = confidence.uncertain_samples();
+    let percent = |n: usize, of: usize| 100.0 * n as f64 / of.max(1) as f64;
+    let fit = &labeled.fit;
     let mut line = format!(
-        "{}: {t} frames, {m} markers, {:.2}% of marker samples labeled, {} points left unlabeled{}; \
-         first-frame fit {:.1} mm rms; {:.2}% of checked samples keep their rigid edges within {EDGE_TOLERANCE_MM} mm\n",
+        "{}: {t} frames, {m} markers; {labeled_samples} marker samples labeled ({:.2}% of {}), of which \
+         {uncertain_samples} uncertain ({:.2}%: a rigid edge broken by more than {EDGE_TOLERANCE_MM} mm, or no \
+         labeled rigid neighbour); {} raw points rejected{}; first fit at frame {}, sure of {} markers, {:.1} mm rms; \
+         {:.2}% of checked samples keep their rigid edges within {EDGE_TOLERANCE_MM} mm\n",
         output.display(),
-        100.0 * labeled.labeled_samples() as f64 / (t * m).max(1) as f64,
-        labeled.unlabeled_points(),
+        percent(labeled_samples, t * m),
+        t * m,
+        percent(uncertain_samples, labeled_samples),
+        confidence.rejected_points,
         if args.keep_unlabeled { " (kept as *N)" } else { " (dropped)" },
-        labeled.fit.rms_mm,
+        fit.frame,
+        fit.sure_markers,
+        fit.rms_mm,
         100.0 * consistent as f64 / checked.max(1) as f64,
     );
+    let never: Vec<&str> = confidence
+        .per_marker
+        .iter()
+        .zip(template.names())
+        .filter(|(c, _)| c.labeled == 0)
+        .map(|(_, n)| n.label.as_str())
+        .collect();
+    if !never.is_empty() {
+        line.push_str(&format!("  never labeled: {}\n", never.join(" ")));
+    }
     if let Some(path) = &args.truth {
         line.push_str(&score_against(path, &labeled.frames, &labeled.labels, template)?);
     }
     Ok(line)
+}
+
+/// `LOCAP:LABEL_CONFIDENCE` (one line per template marker) and `LOCAP:LABEL_UNCERTAIN` (runs
+/// of uncertain samples, compact form) for the labeled take `take`, whose first columns are
+/// the template's markers.
+fn confidence_parameters(
+    take: &locap_core::Take,
+    template: &Template,
+    confidence: &locap_label::Confidence,
+) -> Result<(Vec<String>, Vec<String>)> {
+    let lines = template
+        .names()
+        .iter()
+        .zip(&confidence.per_marker)
+        .map(|(name, c)| match c.score() {
+            Some(score) => format!("{} {score:.4} {}", name.full(), c.labeled),
+            None => format!("{} - 0", name.full()),
+        })
+        .collect();
+    let m = template.marker_count();
+    let base = take.first_frame as usize;
+    let mut runs = Vec::new();
+    for marker in 0..m {
+        let mut f = 0;
+        let t = confidence.uncertain.len() / m.max(1);
+        while f < t {
+            if !confidence.uncertain[f * m + marker] {
+                f += 1;
+                continue;
+            }
+            let start = f;
+            while f < t && confidence.uncertain[f * m + marker] {
+                f += 1;
+            }
+            runs.push(format!("{} {}-{}", template.names()[marker].full(), base + start, base + f - 1));
+        }
+    }
+    let compact = locap_core::range_list::encode(&runs).context("LOCAP:LABEL_UNCERTAIN")?;
+    Ok((lines, compact))
 }
 
 /// Scores `labels` against a truth file; template markers are matched to the truth's by label.

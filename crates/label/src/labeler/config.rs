@@ -92,6 +92,15 @@ pub struct LabelConfig {
     /// Whether the take [`crate::label_take`] builds keeps the points no marker took, as
     /// unlabeled `*0`, `*1`, ... columns after the markers' (else they are dropped).
     pub keep_unlabeled: bool,
+    /// Whether a body segment lost or broken for long is fitted again ([`crate::reacquire`];
+    /// whole takes only, [`crate::label_take`] and [`crate::label_frames`], with a template
+    /// whose body places at least 90% of its markers).
+    #[serde(default = "yes")]
+    pub reacquire: bool,
+}
+
+fn yes() -> bool {
+    true
 }
 
 impl Default for LabelConfig {
@@ -117,6 +126,7 @@ impl Default for LabelConfig {
             kalman: KalmanConfig::default(),
             fit: FitConfig::default(),
             keep_unlabeled: false,
+            reacquire: true,
         }
     }
 }

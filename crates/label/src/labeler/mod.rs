@@ -198,6 +198,36 @@ impl Labeler {
     /// placed where the template's reference pose, moved onto the frame, puts them; rigid
     /// relations of the template seed the missing-marker estimation.
     pub fn start(&mut self, template: &Template, points: &[Vec3], initial: &[Option<usize>]) -> Result<(), LabelError> {
+        self.start_with(template, points, initial, None)
+    }
+
+    /// [`Labeler::start`] from a fit that knows where some unseen markers are
+    /// (`expected_mm`, one per template marker): those start there; the markers the fit is
+    /// not sure of (`None`) start without a track, until their rigid neighbours place them.
+    pub fn start_fitted(
+        &mut self,
+        template: &Template,
+        points: &[Vec3],
+        initial: &[Option<usize>],
+        expected_mm: &[Option<Vec3>],
+    ) -> Result<(), LabelError> {
+        if expected_mm.len() != self.markers {
+            return Err(LabelError::Config(format!(
+                "{} expected positions for {} template markers",
+                expected_mm.len(),
+                self.markers
+            )));
+        }
+        self.start_with(template, points, initial, Some(expected_mm))
+    }
+
+    fn start_with(
+        &mut self,
+        template: &Template,
+        points: &[Vec3],
+        initial: &[Option<usize>],
+        expected_mm: Option<&[Option<Vec3>]>,
+    ) -> Result<(), LabelError> {
         if initial.len() != self.markers {
             return Err(LabelError::Config(format!(
                 "{} initial labels for {} template markers",
@@ -216,16 +246,21 @@ impl Labeler {
         self.innovation_scale.fill(1.0);
         for m in 0..self.markers {
             self.estimated[m] = false;
-            match (initial[m], reference[m], placement) {
-                (Some(p), _, _) => {
+            // With a fit, its expectation replaces the reference pose (which was another pose).
+            let placed = match expected_mm {
+                Some(expected) => expected[m],
+                None => reference[m].zip(placement).map(|(r, t)| t.apply(&r)),
+            };
+            match (initial[m], placed) {
+                (Some(p), _) => {
                     self.tracks[m] = Track::new(points[p], std);
                     self.last_seen_mm[m] = points[p];
                     self.known_mm[m] = Some(points[p]);
                     self.lost[m] = false;
                 }
-                (None, Some(r), Some(t)) => {
-                    self.tracks[m] = Track::new(t.apply(&r), 5.0 * self.config.kalman.estimate_std_mm);
-                    self.last_seen_mm[m] = t.apply(&r);
+                (None, Some(at)) => {
+                    self.tracks[m] = Track::new(at, 5.0 * self.config.kalman.estimate_std_mm);
+                    self.last_seen_mm[m] = at;
                     self.known_mm[m] = None;
                     self.lost[m] = false;
                 }
@@ -274,6 +309,38 @@ impl Labeler {
         }
         self.correct(points);
         &self.labels
+    }
+
+    /// Overrides the last frame's labels of some markers (re-acquisition,
+    /// [`crate::reacquire`]): each `(marker, point)` takes that point of `points` (the frame
+    /// just labeled) with a fresh track; a marker that held another point lets it go, and a
+    /// marker that held the point now given to another is left unlabeled.
+    ///
+    /// # Errors
+    /// [`LabelError::Config`] for a marker or point out of range.
+    pub fn relabel(&mut self, points: &[Vec3], changes: &[(usize, usize)]) -> Result<(), LabelError> {
+        if let Some(bad) = changes.iter().find(|(m, p)| *m >= self.markers || *p >= points.len()) {
+            return Err(LabelError::Config(format!("relabel {bad:?}: out of range")));
+        }
+        let std = self.config.kalman.measurement_std_mm;
+        for &(m, p) in changes {
+            for other in 0..self.markers {
+                if other != m && self.labels[other] == Some(p as u32) {
+                    self.labels[other] = None;
+                    self.was_labeled[other] = false;
+                    self.known_mm[other] = None;
+                }
+            }
+            self.labels[m] = Some(p as u32);
+            self.tracks[m] = Track::new(points[p], std);
+            self.last_seen_mm[m] = points[p];
+            self.known_mm[m] = Some(points[p]);
+            self.innovation_scale[m] = 1.0;
+            self.estimated[m] = false;
+            self.lost[m] = false;
+            self.was_labeled[m] = true;
+        }
+        Ok(())
     }
 
     /// The labels of the last frame.
