@@ -118,7 +118,7 @@ fn clean_report(cleaned: &Cleaned) -> serde_json::Value {
 /// `LOCAP` group.
 #[pyfunction]
 #[pyo3(signature = (
-    take, *, method = "edm", models = Vec::new(), neighbours = 6, ranking = "variance", outliers = true,
+    take, *, method = "auto", models = Vec::new(), neighbours = 6, ranking = "variance", outliers = true,
     body_threshold_m_s2 = OutlierConfig::default().body_threshold_m_s2,
     hand_threshold_m_s2 = OutlierConfig::default().hand_threshold_m_s2,
 ))]
@@ -248,17 +248,15 @@ pub struct PyMotion {
 /// solver from `locap train solve` (default: the built-in CMU 41-marker solver); `refiner`: a
 /// refiner model (default: the shipped ones that fit); `no_refiner`: EDM alone.
 #[pyfunction]
-#[pyo3(signature = (take, *, model = None, refiner = None, no_refiner = false))]
+#[pyo3(signature = (take, *, model = None, fill = "auto", refiner = None))]
 pub fn solve(
     py: Python<'_>,
     take: PyRef<'_, PyTake>,
     model: Option<PathBuf>,
+    fill: &str,
     refiner: Option<PathBuf>,
-    no_refiner: bool,
 ) -> PyResult<PyMotion> {
-    if refiner.is_some() && no_refiner {
-        return Err(usage("refiner and no_refiner=True exclude each other"));
-    }
+    let (fill_method, refine) = fill_method(fill)?;
     let model_bytes = read_models(model.as_slice())?.pop();
     let refiner_bytes = read_models(refiner.as_slice())?.pop();
     let load = |device: &_| match &model_bytes {
@@ -280,15 +278,22 @@ pub fn solve(
         .detach(|| -> anyhow::Result<(Motion, Cleaned)> {
             let device = Default::default();
             let solver = load(&device)?;
-            let filler: Box<dyn Filler> = match (&refiner_bytes, no_refiner) {
+            // As `locap solve --fill`: a refiner only when asked for.
+            let filler: Box<dyn Filler> = match (&refiner_bytes, refine) {
                 (Some(bytes), _) => Box::new(Refiner::from_bytes(bytes, &device)?),
-                (None, true) => Box::new(FillConfig::default()),
-                (None, false) => match locap_nn::shipped::refiners_for(&inner.take, &device)? {
-                    fitting if fitting.is_empty() => Box::new(FillConfig::default()),
+                (None, true) => match locap_nn::shipped::refiners_for(&inner.take, &device)? {
+                    fitting if fitting.is_empty() => anyhow::bail!(
+                        "no shipped refiner fits this take's markers; give one with refiner=..., or use another fill"
+                    ),
                     fitting => Box::new(fitting),
                 },
+                (None, false) => Box::new(FillConfig { method: fill_method, ..FillConfig::default() }),
             };
-            Ok(solver.solve(&inner.take, filler.as_ref())?)
+            let (motion, cleaned) = solver.solve(&inner.take, filler.as_ref())?;
+            // In the animation tools' Y-up frame, as `locap solve` writes it.
+            let lab = solver.meta.lab;
+            let motion = locap_io::axes::motion_to_tools_y_up(&motion, lab.motion_to_lab_rotation(), lab.up_axis());
+            Ok((motion, cleaned))
         })
         .map_err(|e| failure(inner.path.as_deref(), &e))?;
     let mut markers = inner.derived(cleaned.take().clone());

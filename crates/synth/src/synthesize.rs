@@ -70,6 +70,15 @@ impl LabFrame {
         }
     }
 
+    /// The rotation from the motion frame to this lab frame (what [`LabFrame::to_lab`] does to
+    /// a point).
+    pub fn motion_to_lab_rotation(self) -> locap_core::Quat {
+        match self {
+            LabFrame::Motion => locap_core::Quat::identity(),
+            LabFrame::ZUpFromYUp => locap_core::units::y_up_to_z_up_rotation(),
+        }
+    }
+
     /// The up axis of takes in this lab frame.
     pub fn up_axis(self) -> UpAxis {
         match self {

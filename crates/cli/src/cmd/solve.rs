@@ -28,12 +28,11 @@ use crate::inputs;
 use anyhow::{Context, Result, bail};
 use clap::{Parser, ValueEnum};
 use locap_clean::{FillConfig, Filler};
-use locap_core::{LengthUnit, Quat, UpAxis};
+use locap_core::{LengthUnit, UpAxis};
 use locap_io::{axes, export};
 use locap_nn::Refiner;
 use locap_nn::kinematic::KinematicSolver;
 use locap_nn::solver::Solver;
-use locap_synth::synthesize::LabFrame;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
@@ -166,14 +165,6 @@ fn outputs(
     Ok(inputs::output_paths(files, output, Some(extension)))
 }
 
-/// The rotation from a solver's motion frame to its lab frame.
-fn to_lab(lab: LabFrame) -> Quat {
-    match lab {
-        LabFrame::Motion => Quat::identity(),
-        LabFrame::ZUpFromYUp => locap_core::units::y_up_to_z_up_rotation(),
-    }
-}
-
 fn read_model(path: &Path) -> Result<Vec<u8>> {
     std::fs::read(path).with_context(|| format!("{}: cannot read the model", path.display()))
 }
@@ -262,7 +253,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
         let seconds = t0.elapsed().as_secs_f64();
         inputs::create_parent(&targets[i])?;
         let lab = solver.meta.lab;
-        let motion = axes::motion_to_tools_y_up(&motion, to_lab(lab), lab.up_axis());
+        let motion = axes::motion_to_tools_y_up(&motion, lab.motion_to_lab_rotation(), lab.up_axis());
         let markers = args.with_markers.then(|| axes::take_with_up_axis(cleaned.take(), UpAxis::Y));
         let choices = export::MotionOutput { bvh_unit: args.bvh_unit, markers: markers.as_ref() };
         export::write_motion_path(&motion, &choices, &targets[i])?;

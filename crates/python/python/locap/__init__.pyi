@@ -103,7 +103,7 @@ def read(path: _Path) -> Take:
 def clean(
     take: Take,
     *,
-    method: str = "edm",
+    method: str = "auto",
     models: Sequence[_Path] = ...,
     neighbours: int = 6,
     ranking: str = "variance",
@@ -131,10 +131,12 @@ def solve(
     take: Take,
     *,
     model: Optional[_Path] = None,
+    fill: str = "auto",
     refiner: Optional[_Path] = None,
-    no_refiner: bool = False,
 ) -> Motion:
-    """``locap solve``: cleaning, then the motion solver (built-in CMU 41-marker by default)."""
+    """``locap solve``: cleaning (``fill`` as ``clean``'s ``method``; a refiner only with
+    ``fill="neural"`` or ``refiner=``), then the motion solver (built-in CMU 41-marker by
+    default). The motion is in the animation tools' Y-up frame, as ``locap solve`` writes it."""
 
 def bench_fill(
     takes: Sequence[Union[Take, _Path]],
