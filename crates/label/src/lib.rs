@@ -278,6 +278,48 @@ pub struct Confidence {
 }
 
 impl Confidence {
+    /// The `LOCAP:LABEL_CONFIDENCE` lines (one per template marker, `LABEL confidence
+    /// labeled`, `LABEL - 0` for a marker never labeled) and the `LOCAP:LABEL_UNCERTAIN` runs
+    /// (`LABEL first-last` in C3D frame numbers from `first_frame`, in the compact form of
+    /// [`locap_core::range_list`]), as `locap label` writes them.
+    ///
+    /// # Errors
+    /// The runs do not fit the compact form's limits.
+    pub fn parameters(
+        &self,
+        template: &Template,
+        first_frame: u32,
+    ) -> Result<(Vec<String>, Vec<String>), locap_core::range_list::RangeListError> {
+        let lines = template
+            .names()
+            .iter()
+            .zip(&self.per_marker)
+            .map(|(name, c)| match c.score() {
+                Some(score) => format!("{} {score:.4} {}", name.full(), c.labeled),
+                None => format!("{} - 0", name.full()),
+            })
+            .collect();
+        let m = template.marker_count();
+        let base = first_frame as usize;
+        let frames = self.uncertain.len() / m.max(1);
+        let mut runs = Vec::new();
+        for marker in 0..m {
+            let mut f = 0;
+            while f < frames {
+                if !self.uncertain[f * m + marker] {
+                    f += 1;
+                    continue;
+                }
+                let start = f;
+                while f < frames && self.uncertain[f * m + marker] {
+                    f += 1;
+                }
+                runs.push(format!("{} {}-{}", template.names()[marker].full(), base + start, base + f - 1));
+            }
+        }
+        Ok((lines, locap_core::range_list::encode(&runs)?))
+    }
+
     /// Labeled samples, all markers together.
     pub fn labeled(&self) -> usize {
         self.per_marker.iter().map(|c| c.labeled).sum()

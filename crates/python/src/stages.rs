@@ -223,7 +223,17 @@ pub fn label(
         .with_context(|| inner.name())
         .map_err(|e| failure(inner.path.as_deref(), &e))?;
     let mut out = inner.derived(labeled.take.clone());
-    out.labeled = Some(format!("{} template {template_name}", config.method.name()));
+    // What `locap label` records, with the same edge tolerance.
+    let confidence = labeled.labels.confidence(&labeled.frames, &built, LABEL_EDGE_TOLERANCE_MM);
+    let (lines, uncertain) = confidence
+        .parameters(&built, labeled.take.first_frame)
+        .context("LOCAP:LABEL_UNCERTAIN")
+        .map_err(|e| failure(inner.path.as_deref(), &e))?;
+    out.labeled = Some(crate::take::LabelNotes {
+        note: format!("{} template {template_name}", config.method.name()),
+        confidence: lines,
+        uncertain,
+    });
     let samples = (labeled.labels.frame_count() * built.marker_count()).max(1);
     out.report = Some(json!({
         "frames": labeled.labels.frame_count(),
@@ -235,6 +245,10 @@ pub fn label(
     }));
     Ok(out)
 }
+
+/// Distance a labeled marker's edges may stretch and still confirm its label, mm (as
+/// `locap label`'s).
+const LABEL_EDGE_TOLERANCE_MM: f64 = 20.0;
 
 /// Skeleton motion solved from markers.
 #[pyclass(name = "Motion", module = "locap", frozen)]

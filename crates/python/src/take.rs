@@ -28,6 +28,17 @@ pub struct Source {
     pub path: PathBuf,
 }
 
+/// What `locap label` records in the `LOCAP` group of a labeled take.
+#[derive(Debug, Clone)]
+pub struct LabelNotes {
+    /// `LOCAP:LABELED`: the method and template.
+    pub note: String,
+    /// `LOCAP:LABEL_CONFIDENCE`.
+    pub confidence: Vec<String>,
+    /// `LOCAP:LABEL_UNCERTAIN`.
+    pub uncertain: Vec<String>,
+}
+
 /// A marker take: positions in millimetres, frames x markers x 3, NaN where a marker is
 /// missing.
 #[pyclass(name = "Take", module = "locap", skip_from_py_object)]
@@ -41,8 +52,9 @@ pub struct PyTake {
     pub path: Option<PathBuf>,
     /// What cleaning did, stored in the `LOCAP` group when written as C3D.
     pub record: Option<Provenance>,
-    /// `LOCAP:LABELED`, as `locap label` records it.
-    pub labeled: Option<String>,
+    /// `LOCAP:LABELED`, `LABEL_CONFIDENCE` and `LABEL_UNCERTAIN`, as `locap label` records
+    /// them.
+    pub labeled: Option<LabelNotes>,
     /// The points differ from the source file's.
     pub changed: bool,
     /// What the reader noticed but read past (the CLI prints these as warnings).
@@ -128,8 +140,10 @@ impl PyTake {
     }
 
     fn note_labeled(&self, file: &mut C3dFile) {
-        if let Some(note) = &self.labeled {
-            file.parameters.set_strings("LOCAP", "LABELED", std::slice::from_ref(note));
+        if let Some(notes) = &self.labeled {
+            file.parameters.set_strings("LOCAP", "LABELED", std::slice::from_ref(&notes.note));
+            file.parameters.set_strings("LOCAP", "LABEL_CONFIDENCE", &notes.confidence);
+            file.parameters.set_strings("LOCAP", "LABEL_UNCERTAIN", &notes.uncertain);
         }
     }
 

@@ -211,7 +211,8 @@ fn label_one(
     let m = template.marker_count();
     let t = labeled.labels.frame_count();
     let confidence = labeled.labels.confidence(&labeled.frames, template, EDGE_TOLERANCE_MM);
-    let (lines, uncertain) = confidence_parameters(&labeled.take, template, &confidence)?;
+    let (lines, uncertain) =
+        confidence.parameters(template, labeled.take.first_frame).context("LOCAP:LABEL_UNCERTAIN")?;
     file.parameters.set_strings("LOCAP", "LABEL_CONFIDENCE", &lines);
     file.parameters.set_strings("LOCAP", "LABEL_UNCERTAIN", &uncertain);
     c3d::write_path(&file, output)?;
@@ -251,45 +252,6 @@ fn label_one(
         line.push_str(&score_against(path, &labeled.frames, &labeled.labels, template)?);
     }
     Ok(line)
-}
-
-/// `LOCAP:LABEL_CONFIDENCE` (one line per template marker) and `LOCAP:LABEL_UNCERTAIN` (runs
-/// of uncertain samples, compact form) for the labeled take `take`, whose first columns are
-/// the template's markers.
-fn confidence_parameters(
-    take: &locap_core::Take,
-    template: &Template,
-    confidence: &locap_label::Confidence,
-) -> Result<(Vec<String>, Vec<String>)> {
-    let lines = template
-        .names()
-        .iter()
-        .zip(&confidence.per_marker)
-        .map(|(name, c)| match c.score() {
-            Some(score) => format!("{} {score:.4} {}", name.full(), c.labeled),
-            None => format!("{} - 0", name.full()),
-        })
-        .collect();
-    let m = template.marker_count();
-    let base = take.first_frame as usize;
-    let mut runs = Vec::new();
-    for marker in 0..m {
-        let mut f = 0;
-        let t = confidence.uncertain.len() / m.max(1);
-        while f < t {
-            if !confidence.uncertain[f * m + marker] {
-                f += 1;
-                continue;
-            }
-            let start = f;
-            while f < t && confidence.uncertain[f * m + marker] {
-                f += 1;
-            }
-            runs.push(format!("{} {}-{}", template.names()[marker].full(), base + start, base + f - 1));
-        }
-    }
-    let compact = locap_core::range_list::encode(&runs).context("LOCAP:LABEL_UNCERTAIN")?;
-    Ok((lines, compact))
 }
 
 /// Scores `labels` against a truth file; template markers are matched to the truth's by label.
