@@ -160,8 +160,9 @@ pub fn labeled_only(take: &Take) -> Take {
     Take::from_samples(names, &samples, take.frame_rate_hz()).expect("a subset of a take's markers is a take")
 }
 
-/// SplitMix64 step: the protocol's own generator, so its gaps do not change with a crate's.
-fn splitmix(state: &mut u64) -> u64 {
+/// SplitMix64 step: the protocol's own generator, so its gaps do not change with a crate's
+/// (public so tests that hide their own seeded gaps draw them the same way).
+pub fn splitmix(state: &mut u64) -> u64 {
     *state = state.wrapping_add(0x9E37_79B9_7F4A_7C15);
     let mut z = *state;
     z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);

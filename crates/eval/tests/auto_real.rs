@@ -60,15 +60,6 @@ fn auto_is_no_worse_than_the_best_single_method_on_held_out_takes() {
     assert!(out.choices.iter().all(|c| c.filled == c.frames.len() && !c.weights.is_empty()));
 }
 
-/// SplitMix64 step, for the seeded gaps of the timing test.
-fn splitmix(state: &mut u64) -> u64 {
-    *state = state.wrapping_add(0x9E37_79B9_7F4A_7C15);
-    let mut z = *state;
-    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    z ^ (z >> 31)
-}
-
 /// A 10-minute, 41-marker take at 120 Hz (HDM05 played forward and backward in turn) with 2%
 /// of its samples hidden in seeded gaps of 1 frame to 2 s: the time to fill it.
 #[test]
@@ -89,9 +80,9 @@ fn ten_minutes_with_two_percent_missing() {
     let mut hidden = 0;
     let mut gaps = 0;
     while hidden < target {
-        let marker = (splitmix(&mut state) % m as u64) as usize;
-        let len = 1 + (splitmix(&mut state) % 240) as usize;
-        let start = (splitmix(&mut state) % (frames - len) as u64) as usize;
+        let marker = (fill_lengths::splitmix(&mut state) % m as u64) as usize;
+        let len = 1 + (fill_lengths::splitmix(&mut state) % 240) as usize;
+        let start = (fill_lengths::splitmix(&mut state) % (frames - len) as u64) as usize;
         for f in start..start + len {
             if take.is_valid(f, marker) {
                 take.set_position_mm(f, marker, None).unwrap();
