@@ -8,6 +8,9 @@
 //! overlap), and [`fill_bench`] fills them with every method on *the same* gaps, then scores
 //! exactly the hidden samples.
 //!
+//! [`fill_candidates`] chooses the methods under test and the statistics the gaps are drawn
+//! from, the same way for every front end.
+//!
 //! [`fill_lengths`] is the fixed-length protocol of the published gap fillers: gaps of set
 //! lengths (0.1 / 0.5 / 1 / 2 s), one per input and all at once with a whole limb hidden
 //! together, RMSE over the hidden samples per length.
@@ -27,6 +30,7 @@
 //! and draws the charts from the data series the reports give.
 
 pub mod fill_bench;
+pub mod fill_candidates;
 pub mod fill_lengths;
 /// Moved to `locap-synth` (the training-data augmentation and the benchmark share one gap
 /// model); re-exported so `locap_eval::gap_model` keeps working.

@@ -39,7 +39,7 @@ pub mod solver;
 pub use burn;
 pub use harness::{Checkpointer, Checkpoints, Schedule};
 pub use refiner::{ModelMeta, Refiner, TrainConfig, TrainReport, refine_all, refine_all_of};
-pub use refiners::Refiners;
+pub use refiners::{FittingRefiners, RefinerSource, Refiners, filler_for};
 
 /// Errors of the refiner and the solver.
 #[derive(Debug, thiserror::Error)]
@@ -55,6 +55,14 @@ pub enum NnError {
         total: usize,
         /// The first few missing labels.
         first: String,
+    },
+    /// A shipped refiner was asked for and none carries the take's markers.
+    #[error(
+        "no shipped refiner fits this take's markers (shipped: {shipped}); train one with `locap train fill` and give it as a model, or use another fill method"
+    )]
+    NoShippedRefiner {
+        /// The shipped refiners' names.
+        shipped: String,
     },
     /// Not a model file (refiner or solver), or a damaged one.
     #[error("not a usable locap model file: {0}")]

@@ -5,17 +5,13 @@
 use crate::take::PyTake;
 use crate::{failure, json_to_py, usage};
 use anyhow::Context;
-use locap_clean::{FillError, Filled, Filler};
 use locap_core::{GapStatistics, Take};
-use locap_eval::fill_bench::{self, Candidate, Variant};
+use locap_eval::fill_bench;
+use locap_eval::fill_candidates::{self, FillCandidates, GapSource};
 use locap_eval::gap_model::GapModel;
 use locap_nn::Refiner;
 use pyo3::prelude::*;
 use std::path::{Path, PathBuf};
-
-/// Fewer real gaps than this in the takes under test say too little about occlusion (the
-/// CLI's threshold for falling back to the built-in statistics).
-const MIN_OWN_GAPS: usize = 50;
 
 /// A take given as a `Take` or a path, with the name the report uses for it.
 fn named_take(item: &Bound<'_, PyAny>) -> PyResult<(String, Take)> {
@@ -52,60 +48,26 @@ fn gap_model(
     max_gap: usize,
     uniform_fraction: f64,
 ) -> PyResult<GapModel> {
-    let mut model = match gaps {
-        "uniform" => GapModel::uniform(uniform_fraction, max_gap),
+    match gaps {
+        "uniform" => {
+            let mut model = GapModel::uniform(uniform_fraction, max_gap);
+            model.max_gap_frames = max_gap.min(model.length_histogram.len().saturating_sub(1)).max(1);
+            Ok(model)
+        }
         "real" => {
-            let mut stats = Vec::new();
-            let mut models = Vec::new();
-            if sources.is_empty() {
-                let own: Vec<_> = takes.iter().map(|(_, t)| GapStatistics::of_take(t)).collect();
-                if own.iter().map(|s| s.gap_count()).sum::<usize>() >= MIN_OWN_GAPS {
-                    stats.extend(own);
-                } else {
-                    models.push(GapModel::builtin());
-                }
-            }
+            let mut read = Vec::new();
             for source in sources {
-                match source_model(source)? {
-                    Ok(model) => models.push(model),
-                    Err(statistics) => stats.push(statistics),
-                }
+                read.push(match source_model(source)? {
+                    Ok(model) => GapSource::Model(model),
+                    Err(statistics) => GapSource::Statistics(statistics),
+                });
             }
-            let mut model = match (stats.is_empty(), models.pop()) {
-                (true, Some(model)) => model,
-                (true, None) => return Err(usage("no gap statistics")),
-                (false, last) => {
-                    models.extend(last);
-                    GapModel::from_statistics(&stats).map_err(|e| {
-                        usage(format!("the takes have no real gaps to learn from ({e}): give gap_source=[...]"))
-                    })?
-                }
-            };
-            for m in &models {
-                model.merge(m);
-            }
-            model
+            let (model, _) = fill_candidates::real_gap_model(takes, read, max_gap).map_err(|e| {
+                usage(format!("the takes have no real gaps to learn from ({e}): give gap_source=[...]"))
+            })?;
+            Ok(model)
         }
-        other => return Err(usage(format!("gaps {other:?}: one of real, uniform"))),
-    };
-    model.max_gap_frames = max_gap.min(model.length_histogram.len().saturating_sub(1)).max(1);
-    Ok(model)
-}
-
-/// The shipped refiners that carry a take's markers, refined together (scored as `neural`).
-struct FittingRefiners<'a>(&'a [Refiner]);
-
-impl Filler for FittingRefiners<'_> {
-    fn describe(&self) -> String {
-        "shipped refiners".into()
-    }
-
-    fn fill(&self, take: &Take) -> Result<Filled, FillError> {
-        let fitting: Vec<&Refiner> = self.0.iter().filter(|r| r.fits(take)).collect();
-        if fitting.is_empty() {
-            return Err(FillError::new(self, "no shipped refiner was trained on this marker set"));
-        }
-        locap_nn::refine_all_of(take, &fitting).map_err(|e| FillError::new(self, e))
+        other => Err(usage(format!("gaps {other:?}: one of real, uniform"))),
     }
 }
 
@@ -146,7 +108,7 @@ pub fn bench_fill<'py>(
     let takes: Vec<(String, Take)> = takes.iter().map(named_take).collect::<PyResult<_>>()?;
     let model = gap_model(&takes, gaps, &gap_source, max_gap, uniform_fraction)?;
     let device = Default::default();
-    let mut refiners = Vec::new();
+    let mut given = Vec::new();
     for path in &models {
         locap_io::atomic::protect(path);
         let refiner = std::fs::read(path)
@@ -154,12 +116,7 @@ pub fn bench_fill<'py>(
             .and_then(|bytes| Ok(Refiner::from_bytes(&bytes, &device)?))
             .with_context(|| path.display().to_string())
             .map_err(|e| failure(Some(path), &e))?;
-        let stem = path.file_stem().unwrap_or_default().to_string_lossy();
-        let name = match refiner.meta.init {
-            locap_clean::FillMethod::Linear => format!("neural-no-edm:{stem}"),
-            _ => format!("neural:{stem}"),
-        };
-        refiners.push((name, refiner));
+        given.push((path.file_stem().unwrap_or_default().to_string_lossy().into_owned(), refiner));
     }
     let shipped = if no_neural {
         Vec::new()
@@ -167,15 +124,9 @@ pub fn bench_fill<'py>(
         locap_nn::shipped::refiners(&device).map_err(|e| failure(None, &e.into()))?
     };
     let report = py.detach(|| {
-        let fitting = FittingRefiners(&shipped);
-        let variants: Vec<(String, fill_bench::VariantFiller)> =
-            Variant::all().into_iter().map(|v| (v.name(), v.filler(neighbours))).collect();
-        let mut methods: Vec<Candidate> =
-            variants.iter().map(|(name, filler)| Candidate { name, filler: filler as &dyn Filler }).collect();
-        methods.extend(refiners.iter().map(|(name, refiner)| Candidate { name, filler: refiner as &dyn Filler }));
-        if takes.iter().any(|(_, take)| shipped.iter().any(|r| r.fits(take))) {
-            methods.push(Candidate { name: "neural", filler: &fitting });
-        }
+        let candidates = FillCandidates::new(neighbours, given, shipped);
+        let fitting = candidates.fitting();
+        let methods = candidates.for_takes(&takes, &fitting);
         fill_bench::run_candidates(&takes, &model, &methods, seed)
     });
     let mut value = serde_json::to_value(&report).map_err(|e| failure(None, &e.into()))?;

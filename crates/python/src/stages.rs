@@ -7,14 +7,14 @@
 
 use crate::take::{PyTake, parse_unit};
 use crate::{failure, usage};
-use anyhow::{Context, bail};
+use anyhow::Context;
 use locap_clean::outliers::OutlierConfig;
 use locap_clean::swaps::SwapConfig;
-use locap_clean::{CleanConfig, Cleaned, FillConfig, FillMethod, Filler, neighbours::Selection};
-use locap_core::{Motion, Take};
+use locap_clean::{CleanConfig, Cleaned, FillConfig, FillMethod, neighbours::Selection};
+use locap_core::Motion;
 use locap_label::{FitConfig, LabelConfig, Template};
 use locap_nn::solver::Solver;
-use locap_nn::{Refiner, Refiners};
+use locap_nn::{Refiner, RefinerSource};
 use numpy::IntoPyArray;
 use numpy::ndarray::{Array2, Array3};
 use numpy::{PyArray2, PyArray3};
@@ -65,29 +65,6 @@ fn read_models(paths: &[PathBuf]) -> PyResult<Vec<Vec<u8>>> {
                 .map_err(|e| failure(Some(path), &e))
         })
         .collect()
-}
-
-/// The filler of `method="neural"`: the given refiners (all must fit), or the shipped ones
-/// that fit `take`, refusing a take none fits as `locap clean --method neural` does.
-fn neural_filler(take: &Take, models: &[(String, Vec<u8>)]) -> anyhow::Result<Box<dyn Filler>> {
-    let device = Default::default();
-    if !models.is_empty() {
-        let mut named = Vec::new();
-        for (name, bytes) in models {
-            named.push((name.clone(), Refiner::from_bytes(bytes, &device)?));
-        }
-        return Ok(Box::new(Refiners::new(named)));
-    }
-    let fitting = locap_nn::shipped::refiners_for(take, &device)?;
-    if fitting.is_empty() {
-        let names: Vec<&str> = locap_nn::shipped::REFINERS.iter().map(|s| s.name).collect();
-        bail!(
-            "no shipped refiner fits this take's markers (shipped: {}); train one with `locap train fill` and \
-             give it with models=[...], or use method=\"edm\"",
-            names.join(", ")
-        );
-    }
-    Ok(Box::new(fitting))
 }
 
 /// What `locap clean` prints for a take, as JSON.
@@ -166,8 +143,12 @@ pub fn clean(
     let inner: &PyTake = &take;
     let cleaned = py
         .detach(|| -> anyhow::Result<Cleaned> {
-            let filler: Box<dyn Filler> =
-                if neural { neural_filler(&inner.take, &model_bytes)? } else { Box::new(config.fill) };
+            let source = match neural {
+                false => RefinerSource::None,
+                true if model_bytes.is_empty() => RefinerSource::Shipped,
+                true => RefinerSource::Given(model_bytes),
+            };
+            let filler = locap_nn::filler_for(&inner.take, config.fill, &source)?;
             Ok(locap_clean::clean_with(&inner.take, &config, filler.as_ref())?)
         })
         .map_err(|e| failure(inner.path.as_deref(), &e))?;
@@ -287,22 +268,24 @@ pub fn solve(
             .with_context(|| path.display().to_string())
             .map_err(|e| failure(Some(path), &e))?;
     }
+    // As `locap solve --fill / --refiner`: a refiner only when asked for.
+    let source = match (refiner_bytes, &refiner) {
+        (Some(bytes), Some(path)) => {
+            RefinerSource::Given(vec![(path.file_name().unwrap_or_default().to_string_lossy().into_owned(), bytes)])
+        }
+        _ if refine => RefinerSource::Shipped,
+        _ => RefinerSource::None,
+    };
     let inner: &PyTake = &take;
     let (motion, cleaned) = py
         .detach(|| -> anyhow::Result<(Motion, Cleaned)> {
             let device = Default::default();
             let solver = load(&device)?;
-            // As `locap solve --fill`: a refiner only when asked for.
-            let filler: Box<dyn Filler> = match (&refiner_bytes, refine) {
-                (Some(bytes), _) => Box::new(Refiner::from_bytes(bytes, &device)?),
-                (None, true) => match locap_nn::shipped::refiners_for(&inner.take, &device)? {
-                    fitting if fitting.is_empty() => anyhow::bail!(
-                        "no shipped refiner fits this take's markers; give one with refiner=..., or use another fill"
-                    ),
-                    fitting => Box::new(fitting),
-                },
-                (None, false) => Box::new(FillConfig { method: fill_method, ..FillConfig::default() }),
-            };
+            let filler = locap_nn::filler_for(
+                &inner.take,
+                FillConfig { method: fill_method, ..FillConfig::default() },
+                &source,
+            )?;
             let (motion, cleaned) = solver.solve(&inner.take, filler.as_ref())?;
             // In the animation tools' Y-up frame, as `locap solve` writes it.
             let lab = solver.meta.lab;

@@ -4,9 +4,9 @@
 use crate::inputs::{self, read_take};
 use anyhow::{Context, Result, bail};
 use clap::{Parser, Subcommand, ValueEnum};
-use locap_clean::{FillError, Filled, Filler};
 use locap_core::Take;
-use locap_eval::fill_bench::{self, Candidate, Variant};
+use locap_eval::fill_bench::{self, Candidate};
+use locap_eval::fill_candidates::{self, FillCandidates, GapSource};
 use locap_eval::fill_lengths;
 use locap_eval::gap_model::GapModel;
 use locap_eval::label_bench::{self, GhostCount, LabelBenchConfig};
@@ -170,9 +170,6 @@ pub struct FillArgs {
     json: Option<PathBuf>,
 }
 
-/// Fewer real gaps than this in the takes under test say too little about occlusion.
-const MIN_OWN_GAPS: usize = 50;
-
 /// Gap sources.
 #[derive(Debug, Clone, Copy, ValueEnum, PartialEq, Eq)]
 pub enum Gaps {
@@ -256,43 +253,32 @@ fn fill(args: FillArgs) -> Result<ExitCode> {
     if !args.lengths.is_empty() {
         return fill_lengths(&args, &takes);
     }
-    let mut model = match args.gaps {
-        Gaps::Uniform => GapModel::uniform(args.uniform_fraction, args.max_gap),
+    let model = match args.gaps {
+        Gaps::Uniform => {
+            let mut model = GapModel::uniform(args.uniform_fraction, args.max_gap);
+            model.max_gap_frames = args.max_gap.min(model.length_histogram.len().saturating_sub(1)).max(1);
+            model
+        }
         Gaps::Real => {
-            let mut stats = Vec::new();
-            let mut models = Vec::new();
-            if args.gap_source.is_empty() {
-                let own: Vec<_> = takes.iter().map(|(_, t)| locap_core::GapStatistics::of_take(t)).collect();
-                if own.iter().map(|s| s.gap_count()).sum::<usize>() >= MIN_OWN_GAPS {
-                    stats.extend(own);
-                } else {
-                    eprintln!(
-                        "the takes have few real gaps: hiding gaps drawn from the built-in real statistics (numediart 03_rolling)"
-                    );
-                    models.push(GapModel::builtin());
-                }
-            }
+            let mut sources = Vec::new();
             for source in &args.gap_source {
-                if inputs::has_extension(source, &["json"]) {
-                    models.push(gap_model_from(source)?);
+                sources.push(if inputs::has_extension(source, &["json"]) {
+                    GapSource::Model(gap_model_from(source)?)
                 } else {
-                    stats.push(locap_core::GapStatistics::of_take(&read_take(source)?));
-                }
+                    GapSource::Statistics(locap_core::GapStatistics::of_take(&read_take(source)?))
+                });
             }
-            let mut model = if stats.is_empty() {
-                models.pop().context("no gap statistics")?
-            } else {
-                GapModel::from_statistics(&stats).context(
-                    "the takes have no real gaps to learn from: give --gap-source (e.g. a take with real occlusions)",
-                )?
-            };
-            for m in &models {
-                model.merge(m);
+            let (model, builtin) = fill_candidates::real_gap_model(&takes, sources, args.max_gap).context(
+                "the takes have no real gaps to learn from: give --gap-source (e.g. a take with real occlusions)",
+            )?;
+            if builtin {
+                eprintln!(
+                    "the takes have few real gaps: hiding gaps drawn from the built-in real statistics (numediart 03_rolling)"
+                );
             }
             model
         }
     };
-    model.max_gap_frames = args.max_gap.min(model.length_histogram.len().saturating_sub(1)).max(1);
     with_candidates(&args, &takes, |methods| {
         eprintln!("filling hidden gaps in {} takes with {} methods...", takes.len(), methods.len());
         let report = fill_bench::run_candidates(&takes, &model, methods, args.seed.unwrap_or(1));
@@ -328,46 +314,17 @@ fn with_candidates(
     takes: &[(String, Take)],
     run: impl FnOnce(&[Candidate]) -> Result<ExitCode>,
 ) -> Result<ExitCode> {
-    let mut refiners = Vec::new();
+    let mut given = Vec::new();
     for path in &args.model {
         inputs::protect(&[path])?;
         let bytes = std::fs::read(path).with_context(|| format!("{}", path.display()))?;
         let refiner = locap_nn::Refiner::from_bytes(&bytes, &Default::default())
             .with_context(|| format!("{}", path.display()))?;
-        let stem = path.file_stem().unwrap_or_default().to_string_lossy();
-        let name = match refiner.meta.init {
-            locap_clean::FillMethod::Linear => format!("neural-no-edm:{stem}"),
-            _ => format!("neural:{stem}"),
-        };
-        refiners.push((name, refiner));
+        given.push((path.file_stem().unwrap_or_default().to_string_lossy().into_owned(), refiner));
     }
     let shipped = if !args.no_neural { locap_nn::shipped::refiners(&Default::default())? } else { Vec::new() };
-    let fitting = FittingRefiners(&shipped);
-    let variants: Vec<(String, fill_bench::VariantFiller)> =
-        Variant::all().into_iter().map(|v| (v.name(), v.filler(args.neighbours))).collect();
-    let mut methods: Vec<Candidate> =
-        variants.iter().map(|(name, filler)| Candidate { name, filler: filler as &dyn Filler }).collect();
-    methods.extend(refiners.iter().map(|(name, refiner)| Candidate { name, filler: refiner as &dyn Filler }));
-    // The shipped refiners are scored only where some take carries their markers.
-    if takes.iter().any(|(_, take)| shipped.iter().any(|r| r.fits(take))) {
-        methods.push(Candidate { name: "neural", filler: &fitting });
-    }
+    let candidates = FillCandidates::new(args.neighbours, given, shipped);
+    let fitting = candidates.fitting();
+    let methods = candidates.for_takes(takes, &fitting);
     run(&methods)
-}
-
-/// The shipped refiners that carry a take's markers, refined together (scored as `neural`).
-struct FittingRefiners<'a>(&'a [locap_nn::Refiner]);
-
-impl Filler for FittingRefiners<'_> {
-    fn describe(&self) -> String {
-        "shipped refiners".into()
-    }
-
-    fn fill(&self, take: &Take) -> Result<Filled, FillError> {
-        let fitting: Vec<&locap_nn::Refiner> = self.0.iter().filter(|r| r.fits(take)).collect();
-        if fitting.is_empty() {
-            return Err(FillError::new(self, "no shipped refiner was trained on this marker set"));
-        }
-        locap_nn::refine_all_of(take, &fitting).map_err(|e| FillError::new(self, e))
-    }
 }

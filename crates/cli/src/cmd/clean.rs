@@ -12,12 +12,12 @@
 //! locap changed.
 
 use crate::inputs;
-use anyhow::{Context, Result, bail};
+use anyhow::{Context, Result};
 use clap::{Parser, ValueEnum};
 use locap_clean::outliers::OutlierConfig;
 use locap_clean::swaps::SwapConfig;
-use locap_clean::{CleanConfig, Cleaned, FillConfig, FillMethod, Filler, neighbours::Selection};
-use locap_core::Take;
+use locap_clean::{CleanConfig, Cleaned, FillConfig, FillMethod, neighbours::Selection};
+use locap_nn::RefinerSource;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
@@ -116,7 +116,7 @@ pub enum Switch {
 /// Runs `locap clean`.
 pub fn run(args: Args) -> Result<ExitCode> {
     let models = match args.method {
-        Method::Neural if args.model.is_empty() => Models::Shipped,
+        Method::Neural if args.model.is_empty() => RefinerSource::Shipped,
         Method::Neural => {
             let mut given = Vec::new();
             for path in &args.model {
@@ -125,12 +125,13 @@ pub fn run(args: Args) -> Result<ExitCode> {
                 // Checked once here, so a bad model is a usage error, not a failure of every take.
                 locap_nn::Refiner::from_bytes(&bytes, &Default::default())
                     .with_context(|| format!("{}", path.display()))?;
-                given.push(bytes);
+                let name = path.file_name().unwrap_or_default().to_string_lossy().into_owned();
+                given.push((name, bytes));
             }
-            Models::Given(given)
+            RefinerSource::Given(given)
         }
         _ if !args.model.is_empty() => return Err(inputs::usage("--model is only used with --method neural")),
-        _ => Models::None,
+        _ => RefinerSource::None,
     };
     let files = inputs::expand(&args.inputs, &["c3d"])?;
     let targets = inputs::targets(&args.inputs, &files, &args.output)?;
@@ -141,47 +142,6 @@ pub fn run(args: Args) -> Result<ExitCode> {
     let text: String = done.iter().map(|(path, cleaned)| format_summary(path, cleaned)).collect();
     crate::emit(&text)?;
     Ok(if failed > 0 { ExitCode::from(1) } else { ExitCode::SUCCESS })
-}
-
-/// The refiners of `--method neural`.
-enum Models {
-    /// Not refining.
-    None,
-    /// The shipped ones that fit each take.
-    Shipped,
-    /// Model files given with `--model` (all must fit).
-    Given(Vec<Vec<u8>>),
-}
-
-impl Models {
-    /// The filler for `take` (refiners are loaded per job: a burn module is not shared between
-    /// threads); `fill` when not refining.
-    fn filler_for(&self, take: &Take, fill: FillConfig, paths: &[PathBuf]) -> Result<Box<dyn Filler>> {
-        let device = Default::default();
-        match self {
-            Models::None => Ok(Box::new(fill)),
-            Models::Given(files) => {
-                let mut named = Vec::new();
-                for (bytes, path) in files.iter().zip(paths) {
-                    let name = path.file_name().unwrap_or_default().to_string_lossy().into_owned();
-                    named.push((name, locap_nn::Refiner::from_bytes(bytes, &device)?));
-                }
-                Ok(Box::new(locap_nn::Refiners::new(named)))
-            }
-            Models::Shipped => {
-                let fitting = locap_nn::shipped::refiners_for(take, &device)?;
-                if fitting.is_empty() {
-                    let names: Vec<&str> = locap_nn::shipped::REFINERS.iter().map(|s| s.name).collect();
-                    bail!(
-                        "no shipped refiner fits this take's markers (shipped: {}); train one with `locap train fill` \
-                         and give it with --model, or use --method edm",
-                        names.join(", ")
-                    );
-                }
-                Ok(Box::new(fitting))
-            }
-        }
-    }
 }
 
 impl Args {
@@ -207,11 +167,11 @@ impl Args {
     }
 }
 
-fn clean_one(input: &Path, output: &Path, args: &Args, models: &Models) -> Result<Cleaned> {
+fn clean_one(input: &Path, output: &Path, args: &Args, models: &RefinerSource) -> Result<Cleaned> {
     let mut file = inputs::read_c3d(input)?;
     let raw = file.to_take().map_err(|e| e.in_file(input))?;
     let config = args.config();
-    let filler = models.filler_for(&raw, config.fill, &args.model)?;
+    let filler = locap_nn::filler_for(&raw, config.fill, models)?;
     let cleaned = locap_clean::clean_with(&raw, &config, filler.as_ref())?;
     file.write_changed(cleaned.take(), Some(&cleaned.provenance()), input, output)?;
     Ok(cleaned)

@@ -25,14 +25,14 @@
 
 use crate::cmd::clean::Method as FillArg;
 use crate::inputs;
-use anyhow::{Context, Result, bail};
+use anyhow::{Context, Result};
 use clap::{Parser, ValueEnum};
-use locap_clean::{FillConfig, Filler};
+use locap_clean::FillConfig;
 use locap_core::{LengthUnit, UpAxis};
 use locap_io::{axes, export};
-use locap_nn::Refiner;
 use locap_nn::kinematic::KinematicSolver;
 use locap_nn::solver::Solver;
+use locap_nn::{Refiner, RefinerSource};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
@@ -187,6 +187,15 @@ pub fn run(args: Args) -> Result<ExitCode> {
         Refiner::from_bytes(bytes, &device).with_context(|| format!("{}", path.display()))?;
     }
     drop(probe);
+    // As `locap clean --method`: a refiner only when asked for, by file or by `--fill neural`.
+    let refiners = match (&refiner, &args.refiner, args.fill) {
+        (Some(bytes), Some(path), _) => {
+            let name = path.file_name().unwrap_or_default().to_string_lossy().into_owned();
+            RefinerSource::Given(vec![(name, bytes.clone())])
+        }
+        (_, _, FillArg::Neural) => RefinerSource::Shipped,
+        _ => RefinerSource::None,
+    };
     let kinematic = match args.method {
         Method::Network => None,
         Method::Ik | Method::Auto => Some(kinematic_solver(args.layout.as_deref(), args.skeleton.as_deref())?),
@@ -215,16 +224,8 @@ pub fn run(args: Args) -> Result<ExitCode> {
         // One solver per job: a burn module is not shared between threads.
         let device = Default::default();
         let solver = load_solver(&device)?;
-        let filler: Box<dyn Filler> = match (&refiner, args.fill) {
-            (Some(bytes), _) => Box::new(Refiner::from_bytes(bytes, &device)?),
-            (None, FillArg::Neural) => match locap_nn::shipped::refiners_for(&take, &device)? {
-                fitting if fitting.is_empty() => {
-                    bail!("no shipped refiner fits this take's markers; give one with --refiner, or use another --fill")
-                }
-                fitting => Box::new(fitting),
-            },
-            (None, fill) => Box::new(FillConfig { method: fill.into(), ..FillConfig::default() }),
-        };
+        let filler =
+            locap_nn::filler_for(&take, FillConfig { method: args.fill.into(), ..FillConfig::default() }, &refiners)?;
         let use_ik = match (args.method, &kinematic) {
             (Method::Ik, _) => true,
             (Method::Auto, Some(k)) => {
