@@ -18,6 +18,12 @@
 //!    `i`'s [`CHECKED_NEIGHBOURS`] best neighbours that is captured throughout the real gap is
 //!    captured throughout the window as well (the trial must not see a poorer neighbourhood
 //!    than the real gap, nor, by the hiding rule, a richer one);
+//!    and [`AutoConfig::neighbour_trials`] trials at the real gap's *own* frames: each of
+//!    `i`'s best neighbours that is captured throughout the gap and its borders is hidden
+//!    there in its turn (with `i` and whatever else is missing there) and filled. They see the
+//!    gap's own motion, which trials elsewhere in time cannot: a pose the take never repeats
+//!    defeats a method that learned from the rest of the take (PCA on a short take), and a
+//!    short take may have no window of the gap's length to spare;
 //! 2. every candidate ([`FillMethod::Edm`], [`FillMethod::Pca`], [`FillMethod::Rigid`],
 //!    [`FillMethod::Spline`], [`FillMethod::Linear`]) fills each trial; each is scored by its
 //!    RMSE over the hidden samples of `i`, pooled over the trials. A sample a candidate leaves
@@ -63,11 +69,14 @@
 //!   [`Weighting::LeastSquares`], kept as an option), no better.
 //! - Trial windows nearest in time first: the motion near a gap resembles the motion in it
 //!   more than motion elsewhere in the take. Three trials: more cost more and changed little.
+//! - Two neighbour trials: they cost as much as two more windows, and on the short take of
+//!   the tuning set they changed the choice where more windows could not; four changed little.
 //! - PCA sees a wider window (30 s each side) than the other candidates (2 s): its
 //!   covariance gains from more poses, EDM's ranking and the interpolations do not.
-//! - Every constant of [`AutoConfig::default`] and [`default_ranking`] was chosen on one take,
-//!   CMU 85_12, with protocol seeds other than the one reported; the other shared takes (CMU
-//!   85_02, 135_02, HDM05) are held out (`locap bench fill --lengths`; the tuning example `crates/eval/examples/auto_fill.rs`,
+//! - Every constant of [`AutoConfig::default`] and [`default_ranking`] was chosen on CMU
+//!   subject 85 (85_12; the neighbour trials on 85_12 and the short 85_02), with protocol
+//!   seeds other than the one reported; another subject (CMU 135_02) and another lab (HDM05)
+//!   are held out (`locap bench fill --lengths`; the tuning example `crates/eval/examples/auto_fill.rs`,
 //!   the test `crates/eval/tests/auto_real.rs`).
 //! - Unlabeled points (`*N`) are not filled, as in [`crate::fill_gaps`].
 
@@ -101,8 +110,9 @@ pub enum Weighting {
     LeastSquares,
 }
 
-/// Settings of [`fill`].
+/// Settings of [`fill`] (a setting missing from a serialized config takes its default).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
 pub struct AutoConfig {
     /// Most trial gaps per real gap.
     pub trials: usize,
@@ -134,6 +144,9 @@ pub struct AutoConfig {
     pub search_s: f64,
     /// Seed of the trial windows' jitter.
     pub seed: u64,
+    /// Trials at the real gap's own frames: this many of the marker's best neighbours, each
+    /// hidden there in its turn (where captured) and filled by every candidate.
+    pub neighbour_trials: usize,
 }
 
 impl AutoConfig {
@@ -160,6 +173,7 @@ impl Default for AutoConfig {
             selection: Selection::Variance,
             search_s: 60.0,
             seed: 15,
+            neighbour_trials: 2,
         }
     }
 }
@@ -329,6 +343,24 @@ impl Context<'_> {
         let reference = if edge == Edge::Inside { FillMethod::Linear } else { FillMethod::Edm };
         // Error vectors per candidate over the trials' hidden samples.
         let mut errors: Vec<Vec<Vec3>> = vec![Vec::new(); candidates.len()];
+        // One trial: `target` hidden over `range` with `hidden`, filled on the sub-takes of
+        // `target` and its neighbours by every candidate, errors added.
+        let mut score = |target: usize, range: Range<usize>, hidden: &dyn Fn(usize, usize) -> bool| {
+            let windows =
+                self.windows(range.clone(), edge, &self.local_markers(target), &self.pca_markers(target), hidden);
+            let fills: Vec<Vec<Option<Vec3>>> = candidates.iter().map(|c| self.candidate(*c, &windows)).collect();
+            let reference = match candidates.iter().position(|c| *c == reference) {
+                Some(r) => fills[r].clone(),
+                None => self.candidate(reference, &windows),
+            };
+            for (k, f) in range.clone().enumerate() {
+                let Some(truth) = self.take.position_mm(f, target) else { continue };
+                let Some(reference) = reference[k] else { continue };
+                for (c, fill) in fills.iter().enumerate() {
+                    errors[c].push(fill[k].unwrap_or(reference) - truth);
+                }
+            }
+        };
         let starts = self.trial_starts(marker, gap, edge);
         for &start in &starts {
             let offset = start as isize - gap.start as isize;
@@ -336,20 +368,16 @@ impl Context<'_> {
                 (start..start + gap.len).contains(&f)
                     && (j == marker || !self.take.is_valid((f as isize - offset) as usize, j))
             };
-            let range = start..start + gap.len;
-            let windows = self.windows(range.clone(), edge, &local, &wide, &hidden);
-            let fills: Vec<Vec<Option<Vec3>>> = candidates.iter().map(|c| self.candidate(*c, &windows)).collect();
-            let reference = match candidates.iter().position(|c| *c == reference) {
-                Some(r) => fills[r].clone(),
-                None => self.candidate(reference, &windows),
-            };
-            for (k, f) in range.clone().enumerate() {
-                let Some(truth) = self.take.position_mm(f, marker) else { continue };
-                let Some(reference) = reference[k] else { continue };
-                for (c, fill) in fills.iter().enumerate() {
-                    errors[c].push(fill[k].unwrap_or(reference) - truth);
-                }
-            }
+            score(marker, start..start + gap.len, &hidden);
+        }
+        // Trials at the gap's own frames, on neighbours: the motion of the real gap itself
+        // (a pose the rest of the take never repeats defeats a method that learned from the
+        // rest, and no trial elsewhere in time shows it).
+        let neighbours = self.neighbour_trials(marker, gap, edge);
+        for &j in &neighbours {
+            let hidden =
+                |f: usize, k: usize| (gap.start..gap.end()).contains(&f) && (k == j || !self.take.is_valid(f, k));
+            score(j, gap.start..gap.end(), &hidden);
         }
         let mut scores: Vec<(FillMethod, f64)> = candidates
             .iter()
@@ -358,7 +386,7 @@ impl Context<'_> {
             .map(|(c, e)| (*c, (e.iter().map(|v| v.norm_squared()).sum::<f64>() / e.len() as f64).sqrt()))
             .collect();
         scores.sort_by(|a, b| a.1.total_cmp(&b.1));
-        let trials = if scores.is_empty() { 0 } else { starts.len() };
+        let trials = if scores.is_empty() { 0 } else { starts.len() + neighbours.len() };
         let ranking: Vec<FillMethod> = if scores.is_empty() {
             default_ranking(gap.len as f64 / self.take.frame_rate_hz(), edge != Edge::Inside).to_vec()
         } else {
@@ -443,6 +471,25 @@ impl Context<'_> {
             list.extend(self.nearest[marker].iter().copied().take(self.config.pca_markers.saturating_sub(1)));
         }
         list
+    }
+
+    /// Neighbours of `marker` (best first, at most [`AutoConfig::neighbour_trials`]) captured
+    /// throughout `gap` and its borders: they are hidden at the gap's own frames as trials.
+    fn neighbour_trials(&self, marker: usize, gap: Gap, edge: Edge) -> Vec<usize> {
+        let frames = self.take.frame_count();
+        let span = match edge {
+            Edge::Inside => gap.start.saturating_sub(1)..(gap.end() + 1).min(frames),
+            Edge::Start => gap.start..(gap.end() + 1).min(frames),
+            Edge::End => gap.start.saturating_sub(1)..gap.end(),
+        };
+        self.ranked[marker]
+            .iter()
+            .filter(|(_, v)| v.is_finite())
+            .map(|(j, _)| *j)
+            .filter(|j| !self.take.markers()[*j].is_unlabeled())
+            .filter(|j| span.clone().all(|f| self.take.is_valid(f, *j)))
+            .take(self.config.neighbour_trials)
+            .collect()
     }
 
     /// Starts of the trial windows for `gap` of `marker`, nearest first.
@@ -675,7 +722,7 @@ mod tests {
         let recorded: Vec<(usize, Range<usize>)> = out.choices.iter().map(|c| (c.marker, c.frames.clone())).collect();
         assert_eq!(recorded, vec![(0, 300..360), (0, 600..612), (2, 450..500)]);
         for c in &out.choices {
-            assert_eq!(c.trials, AutoConfig::default().trials);
+            assert_eq!(c.trials, AutoConfig::default().trials + AutoConfig::default().neighbour_trials);
             assert_eq!(c.filled, c.frames.len());
             let methods: Vec<FillMethod> = c.weights.iter().map(|(m, _)| *m).collect();
             assert!(methods.iter().all(|m| matches!(m, FillMethod::Edm | FillMethod::Rigid)), "{}", c.method());
@@ -727,12 +774,33 @@ mod tests {
         let truth = cluster(70, |i| format!("M{i}"));
         let mut holed = truth.clone();
         hide(&mut holed, 0, 10..60);
-        let out = fill(&holed, &AutoConfig::default());
+        let config = AutoConfig { neighbour_trials: 0, ..AutoConfig::default() };
+        let out = fill(&holed, &config);
         let [choice] = out.choices.as_slice() else { panic!("{:?}", out.choices) };
         assert_eq!(choice.trials, 0);
         assert!(choice.trial_rmse_mm.is_empty());
         assert!(choice.method().starts_with("default: "), "{}", choice.method());
         assert_eq!(choice.filled, 50);
+    }
+
+    /// A gap too long for any trial window elsewhere in a short take is still tried: on its
+    /// neighbours at its own frames, which ride the same rigid motion, so the choice is exact.
+    #[test]
+    fn a_short_take_is_tried_on_the_neighbours_at_the_gaps_own_frames() {
+        let truth = cluster(70, |i| format!("M{i}"));
+        let mut holed = truth.clone();
+        hide(&mut holed, 0, 10..60);
+        // Marker 1 is missing over part of the gap: it is no trial, the others are.
+        hide(&mut holed, 1, 30..35);
+        let out = fill(&holed, &AutoConfig::default());
+        let choice = out.choices.iter().find(|c| c.marker == 0).unwrap();
+        assert_eq!(choice.trials, AutoConfig::default().neighbour_trials);
+        assert!(!choice.method().starts_with("default"), "{}", choice.method());
+        assert!(choice.best_trial_rmse_mm().unwrap() < 1e-6, "{:?}", choice.trial_rmse_mm);
+        for f in 10..60 {
+            let (a, b) = (out.filled.take.position_mm(f, 0).unwrap(), truth.position_mm(f, 0).unwrap());
+            assert!((a - b).norm() < 1e-6, "frame {f}: {a:?} vs {b:?}");
+        }
     }
 
     #[test]

@@ -41,6 +41,7 @@ fn main() {
         config.weighting = auto::Weighting::LeastSquares;
     }
     set(get("--trials"), "--trials", &mut config.trials);
+    set(get("--neighbour-trials"), "--neighbour-trials", &mut config.neighbour_trials);
     set(get("--context"), "--context", &mut config.context_s);
     set(get("--pca-context"), "--pca-context", &mut config.pca_context_s);
     set(get("--pca-fit"), "--pca-fit", &mut config.pca_fit_frames);
