@@ -1484,6 +1484,32 @@ pub(crate) mod tests {
     }
 
     #[test]
+    fn a_marker_worn_far_from_the_templates_place_is_recalibrated_not_dropped() {
+        let model = hinged_arm();
+        let (mut subject, _, truth) = subject_take(&model, 240);
+        // The subject wears the forearm's markers 120 mm from where the template has them: beyond
+        // the calibration's stray cutoff in every frame.
+        let moved = Vec3::new(50.0, 100.0, -40.0);
+        for i in 6..9 {
+            subject.attachments[i].as_mut().unwrap().offset_mm += moved;
+        }
+        let frames: Frames = truth.iter().map(|theta| subject.markers_mm(theta)).collect();
+        // A tight cutoff, so the poses' compromise cannot bring the moved markers inside it.
+        let config = SequenceConfig { calibration_outlier_mm: 15.0, ..Default::default() };
+        let fit = solve_sequence(model, &frames, 60.0, &config).unwrap();
+        let rms = fit.rms_mm(&frames);
+        assert!(rms < 5.0, "residual {rms:.2} mm");
+        let (mut sum, mut n) = (0.0, 0.0);
+        for (f, (local, root)) in fit.poses.iter().enumerate() {
+            let e = (fit.model.markers_at(local, *root)[7].unwrap() - frames[f][7].unwrap()).norm();
+            sum += e * e;
+            n += 1.0;
+        }
+        let marker = (sum / n).sqrt();
+        assert!(marker < 5.0, "the moved marker stays {marker:.1} mm off");
+    }
+
+    #[test]
     fn bad_sequences_are_errors() {
         let model = arm_model();
         assert!(solve_sequence(model.clone(), &[], 60.0, &SequenceConfig::default()).is_err());
