@@ -137,6 +137,20 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     println!("per marker (mm RMS): {}", text.join(", "));
     let text: Vec<String> = body.iter().map(|(n, (s, k))| format!("{n} {:.1}", (s / *k as f64).sqrt())).collect();
     println!("per body (mm RMS): {}", text.join(", "));
+    // The shipped network on the same cleaned take, where its markers are all there: the
+    // throughput ratio of issue 17 in one run.
+    let device = Default::default();
+    let network = locap_nn::shipped::solver(&device)?;
+    if locap_nn::features::marker_order(&take, &network.meta.markers).is_ok() {
+        let t0 = std::time::Instant::now();
+        let solved = network.solve_cleaned(&cleaned, take.frame_rate_hz())?;
+        let network_fps = solved.frame_count() as f64 / t0.elapsed().as_secs_f64();
+        println!(
+            "throughput: kinematic {:.0} frames/s, network {network_fps:.0} frames/s ({:.0} times)",
+            frames.len() as f64 / seconds,
+            network_fps * seconds / frames.len() as f64
+        );
+    }
     let skeleton = fit.model.skeleton().clone();
     let rotations = fit.poses.iter().flat_map(|(local, _)| local.iter().copied()).collect();
     let roots = fit.poses.iter().map(|(_, root)| *root).collect();
