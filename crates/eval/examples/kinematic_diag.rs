@@ -54,6 +54,17 @@ fn percentile(sorted: &[f64], p: f64) -> f64 {
     sorted[((sorted.len() - 1) as f64 * p).round() as usize]
 }
 
+/// Median, 90th and 99th percentile and worst of sorted distances (mm).
+fn spread(sorted: &[f64]) -> String {
+    format!(
+        "median {:.2}, p90 {:.2}, p99 {:.2}, worst {:.2} mm",
+        percentile(sorted, 0.5),
+        percentile(sorted, 0.9),
+        percentile(sorted, 0.99),
+        sorted.last().copied().unwrap_or(f64::NAN)
+    )
+}
+
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let take_path = args.first().ok_or("usage: kinematic_diag TAKE.c3d [MODEL.osim MARKERS.xml] [--amc ASF AMC]")?;
@@ -90,13 +101,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     );
     let mut per_frame: Vec<f64> = fit.residual_rms_mm.iter().flatten().copied().collect();
     per_frame.sort_by(f64::total_cmp);
-    println!(
-        "per frame: median {:.2}, p90 {:.2}, p99 {:.2}, worst {:.2} mm",
-        percentile(&per_frame, 0.5),
-        percentile(&per_frame, 0.9),
-        percentile(&per_frame, 0.99),
-        per_frame.last().copied().unwrap_or(f64::NAN)
-    );
+    println!("per frame: {}", spread(&per_frame));
     // Per marker and per body: RMS over the frames where the marker is seen.
     let model = &fit.model;
     let joints = model.skeleton().joints();
@@ -113,13 +118,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         }
     }
     all_d.sort_by(f64::total_cmp);
-    println!(
-        "per sample: median {:.2}, p90 {:.2}, p99 {:.2} mm; share over 30 mm {:.1}%",
-        percentile(&all_d, 0.5),
-        percentile(&all_d, 0.9),
-        percentile(&all_d, 0.99),
-        100.0 * all_d.iter().filter(|d| **d > 30.0).count() as f64 / all_d.len().max(1) as f64
-    );
+    let over = all_d.iter().filter(|d| **d > 30.0).count() as f64 / all_d.len().max(1) as f64;
+    println!("per sample: {}; share over 30 mm {:.1}%", spread(&all_d), 100.0 * over);
     let mut body: std::collections::BTreeMap<String, (f64, usize)> = Default::default();
     let mut rows: Vec<(f64, String)> = Vec::new();
     for (i, att) in model.attachments().iter().enumerate() {
