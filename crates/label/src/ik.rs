@@ -30,8 +30,12 @@
 //! reweighting). [`solve_sequence`] uses it for a whole take: a subject calibration (bone
 //! lengths and marker offsets by linear least squares on poses from a subset of frames, as a
 //! studio's range-of-motion calibration does: with the rotations fixed, every marker is linear in
-//! the bone lengths, the offsets and the root), then frame after frame, warm-started, with the
-//! smoothness and limit terms.
+//! the bone lengths, the offsets and the root; the priors hold lengths and offsets to the
+//! template's at the subject's overall scale), then frame after frame, warm-started, with the
+//! smoothness and limit terms. A calibration sample counts as a stray only when it lies far
+//! from where the marker's median displacement in its body puts it: a marker the subject wears
+//! a few centimetres from the template's place is off by the same amount in every frame, and is
+//! recalibrated rather than left out.
 
 use crate::LabelError;
 use argmin::core::{CostFunction, Error, Executor, Gradient, State};
@@ -329,7 +333,9 @@ impl IkConfig {
         IkConfig {
             observed: 1.0,
             predicted: 0.0,
-            smooth: 10.0,
+            // Joints the markers barely see (a hand with one marker, a foot's roll) are held by
+            // smoothness alone: at 10 they turned 20-60 degrees between frames on CMU 135_02.
+            smooth: 100.0,
             limits: 1e4,
             limit_deg: 170.0,
             iterations: 12,
@@ -593,6 +599,30 @@ fn right_jacobian(v: &Vec3) -> Matrix3<f64> {
     Matrix3::identity() - k * ((1.0 - t.cos()) / t2) + k * k * ((t - t.sin()) / (t2 * t))
 }
 
+/// `J^T J` and `J^T r`, row by row over each row's non-zero entries: a marker's row touches
+/// only the root and the joints above it, a smoothness or limit row one joint, so this is many
+/// times cheaper than the dense product on a skeleton of a few dozen joints.
+fn normal_equations(r: &DVector<f64>, jac: &DMatrix<f64>) -> (DMatrix<f64>, DVector<f64>) {
+    let n = jac.ncols();
+    let mut h = DMatrix::zeros(n, n);
+    let mut g = DVector::zeros(n);
+    let mut nz: Vec<(usize, f64)> = Vec::with_capacity(n);
+    for i in 0..jac.nrows() {
+        nz.clear();
+        nz.extend((0..n).filter_map(|k| {
+            let x = jac[(i, k)];
+            (x != 0.0).then_some((k, x))
+        }));
+        for &(a, x) in &nz {
+            g[a] += x * r[i];
+            for &(b, y) in &nz {
+                h[(a, b)] += x * y;
+            }
+        }
+    }
+    (h, g)
+}
+
 /// Levenberg-Marquardt from `start`: at most `iterations` accepted steps, each kept only if it
 /// lowers the energy.
 fn levenberg_marquardt(problem: &PoseProblem, start: Vec<f64>, iterations: u64) -> Vec<f64> {
@@ -601,9 +631,7 @@ fn levenberg_marquardt(problem: &PoseProblem, start: Vec<f64>, iterations: u64) 
     let mut damping = 1e-3;
     for _ in 0..iterations {
         let (r, jac) = problem.linearize(&theta);
-        let jt = jac.transpose();
-        let h = &jt * &jac;
-        let g = &jt * &r;
+        let (h, g) = normal_equations(&r, &jac);
         let mut accepted = false;
         for _ in 0..8 {
             let mut a = h.clone();
@@ -830,15 +858,16 @@ pub struct SequenceConfig {
     /// Rounds of calibration (poses, then lengths and offsets); the first fits one overall
     /// scale, the others each bone's length and each marker's offset.
     pub calibration_rounds: usize,
-    /// Pull of a bone's length scale towards 1 (after the overall scale): mm of residual per
+    /// Pull of a bone's length scale towards the template's (at the overall scale): mm of residual per
     /// unit of scale, per calibration frame (10% costs as much as `0.1 x` this on one marker
     /// in every frame).
     pub bone_prior_mm: f64,
-    /// Pull of a marker's offset towards the template's: residual per mm of offset change, per
-    /// calibration frame.
+    /// Pull of a marker's offset towards the template's (at the overall scale): residual per mm
+    /// of offset change, per calibration frame.
     pub offset_prior: f64,
-    /// Calibration samples further than this from the posed model (mm) are left out (stray or
-    /// swapped markers).
+    /// Calibration samples further than this (mm) from where the posed model and the marker's
+    /// median displacement put it are left out (stray or swapped markers; in the first round,
+    /// which fits no offsets, from the posed model itself).
     pub calibration_outlier_mm: f64,
     /// Frame rate (Hz) of the first, calibration-pose pass over the take (every k-th frame).
     pub first_pass_hz: f64,
@@ -849,9 +878,11 @@ impl Default for SequenceConfig {
         SequenceConfig {
             ik: IkConfig::kinematic(),
             calibration_frames: 40,
-            calibration_rounds: 4,
+            // Poses and offsets are fitted in turn, which converges slowly where a whole
+            // cluster sits elsewhere than the template's (docs/benchmarks.md, "Kinematic solver").
+            calibration_rounds: 10,
             bone_prior_mm: 200.0,
-            offset_prior: 0.3,
+            offset_prior: 0.05,
             calibration_outlier_mm: 60.0,
             first_pass_hz: 30.0,
         }
@@ -966,15 +997,16 @@ pub fn solve_sequence(
         let chosen_frames: Vec<&[Option<Vec3>]> = chosen.iter().map(|&f| frames[f].as_slice()).collect();
         poses = refit_poses(&model, refit, &chosen_frames, &poses);
         calibration_rms_mm.0 = rms_of(&model, &poses, &chosen_frames);
-        for round in 0..config.calibration_rounds {
-            let per_bone = round > 0;
-            let (s, offsets) = calibrate_linear(&model, &poses, &chosen_frames, per_bone, config);
+        let mut anchor: Option<MarkerModel> = None;
+        for _ in 0..config.calibration_rounds {
+            let (s, offsets) = calibrate_linear(&model, &poses, &chosen_frames, anchor.as_ref(), config);
             model = model.resized(&s, &offsets);
             for (b, x) in bone_scales.iter_mut().zip(&s) {
                 *b *= x;
             }
-            if !per_bone {
+            if anchor.is_none() {
                 scale = s.get(1).copied().unwrap_or(1.0);
+                anchor = Some(model.clone());
             }
             refit.iterations = 20;
             poses = refit_poses(&model, refit, &chosen_frames, &poses);
@@ -1054,18 +1086,56 @@ fn refit_poses(
 /// Per marker, its offset on its joint and, for a blended marker, on the second joint (mm).
 type NewOffsets = Vec<Option<(Vec3, Option<Vec3>)>>;
 
+/// Per marker, the component-wise median over the frames of where its sample lies from the
+/// posed model's marker, in the frame of the body it rides on (mm, scaled by the share of the
+/// marker that body carries): the robust estimate of how far the subject wears it from the
+/// template's place.
+fn offset_shifts(model: &MarkerModel, poses: &[(Vec<Quat>, Vec3)], frames: &[&[Option<Vec3>]]) -> Vec<Vec3> {
+    let lab_inv = model.lab.inverse();
+    let mut seen: Vec<[Vec<f64>; 3]> = vec![Default::default(); model.marker_count()];
+    for ((local, root), frame) in poses.iter().zip(frames) {
+        let pose = forward_kinematics(&model.skeleton, local, *root);
+        for (i, (now, o)) in model.markers_at(local, *root).iter().zip(frame.iter()).enumerate() {
+            let (Some(att), Some(now), Some(o)) = (&model.attachments[i], now, o) else { continue };
+            let share = 1.0 - att.blend.map_or(0.0, |b| b.1);
+            if share < 1e-3 {
+                continue;
+            }
+            let d = pose.rotations[att.joint].inverse() * (lab_inv * (o - now)) / share;
+            for c in 0..3 {
+                seen[i][c].push(d[c]);
+            }
+        }
+    }
+    seen.into_iter()
+        .map(|mut axes| {
+            let mut out = Vec3::zeros();
+            for (c, v) in axes.iter_mut().enumerate() {
+                if !v.is_empty() {
+                    v.sort_by(f64::total_cmp);
+                    out[c] = v[v.len() / 2];
+                }
+            }
+            out
+        })
+        .collect()
+}
+
 /// The calibration's linear least squares: with every frame's rotations fixed, each marker is
 /// `root + sum_b s_b G_parent(b) offset_b + G_j o` (skeleton frame), linear in the roots, the
-/// bone scales `s_b` and the offsets `o`. `per_bone`: one scale per bone and the offsets, with
-/// priors; else one overall scale of bones and offsets together. Returns the per-joint scales
-/// and the new offsets (primary, blend) per marker.
+/// bone scales `s_b` and the offsets `o`. `anchor` given: one scale per bone and the offsets,
+/// with priors towards the anchor's lengths and offsets (the template at the subject's overall
+/// scale: anchored to it, not to the previous round, the lengths and offsets the markers leave
+/// free cannot drift from round to round); else one overall scale of bones and offsets
+/// together. Returns the per-joint scales and the new offsets (primary, blend) per marker.
 fn calibrate_linear(
     model: &MarkerModel,
     poses: &[(Vec<Quat>, Vec3)],
     frames: &[&[Option<Vec3>]],
-    per_bone: bool,
+    anchor: Option<&MarkerModel>,
     config: &SequenceConfig,
 ) -> (Vec<f64>, NewOffsets) {
+    let per_bone = anchor.is_some();
     let sk = &model.skeleton;
     let joints = sk.len();
     let k = poses.len();
@@ -1115,12 +1185,17 @@ fn calibrate_linear(
     };
     let lab_inv = model.lab.inverse();
     let cutoff = config.calibration_outlier_mm;
+    let shifts = if per_bone { offset_shifts(model, poses, frames) } else { vec![Vec3::zeros(); model.marker_count()] };
     for (f, ((local, root), frame)) in poses.iter().zip(frames).enumerate() {
         let pose = forward_kinematics(sk, local, *root);
         let current = model.markers_at(local, *root);
         for (i, att) in model.attachments.iter().enumerate() {
             let (Some(att), Some(o), Some(now)) = (att, frame[i], current[i]) else { continue };
-            if (now - o).norm() > cutoff {
+            // A marker the subject wears elsewhere than the template is off by the same
+            // displacement (in its body's frame) in every frame: that is what the offsets are
+            // fitted for, so only samples off from the marker's own typical place are strays.
+            let expected = now + model.lab * (pose.rotations[att.joint] * shifts[i]);
+            if (expected - o).norm() > cutoff {
                 continue;
             }
             let target = lab_inv * o;
@@ -1161,14 +1236,16 @@ fn calibrate_linear(
         }
     }
     let root_k = (k as f64).sqrt();
-    if per_bone {
+    if let Some(anchor) = anchor {
         let w = config.bone_prior_mm * root_k;
-        for col in scaled.iter().flatten() {
-            add_row(&[(*col, w)], w, &mut a, &mut b);
+        for (j, col) in scaled.iter().enumerate() {
+            let Some(col) = col else { continue };
+            let target = anchor.skeleton.joints()[j].offset_mm.norm() / sk.joints()[j].offset_mm.norm();
+            add_row(&[(*col, w)], w * target, &mut a, &mut b);
         }
         let w = config.offset_prior * root_k;
         for (i, col) in offset_of.iter().enumerate() {
-            let (Some(col), Some(att)) = (col, &model.attachments[i]) else { continue };
+            let (Some(col), Some(att)) = (col, &anchor.attachments[i]) else { continue };
             for d in 0..3 {
                 add_row(&[(col + d, w)], w * att.offset_mm[d], &mut a, &mut b);
             }
@@ -1426,6 +1503,43 @@ pub(crate) mod tests {
             solve_sequence(model, &frames, 60.0, &SequenceConfig { calibration_frames: 0, ..Default::default() })
                 .unwrap();
         assert!(plain.rms_mm(&frames) > 2.0 * rms, "{} vs {rms}", plain.rms_mm(&frames));
+    }
+
+    #[test]
+    fn a_marker_worn_far_from_the_templates_place_is_recalibrated_not_dropped() {
+        let model = hinged_arm();
+        let (mut subject, _, truth) = subject_take(&model, 240);
+        // The subject wears the forearm's markers 120 mm from where the template has them: beyond
+        // the calibration's stray cutoff in every frame.
+        let moved = Vec3::new(50.0, 100.0, -40.0);
+        for i in 6..9 {
+            subject.attachments[i].as_mut().unwrap().offset_mm += moved;
+        }
+        let frames: Frames = truth.iter().map(|theta| subject.markers_mm(theta)).collect();
+        // A tight cutoff, so the poses' compromise cannot bring the moved markers inside it.
+        let config = SequenceConfig { calibration_outlier_mm: 15.0, ..Default::default() };
+        let fit = solve_sequence(model, &frames, 60.0, &config).unwrap();
+        let rms = fit.rms_mm(&frames);
+        assert!(rms < 5.0, "residual {rms:.2} mm");
+        let (mut sum, mut n) = (0.0, 0.0);
+        for (f, (local, root)) in fit.poses.iter().enumerate() {
+            let e = (fit.model.markers_at(local, *root)[7].unwrap() - frames[f][7].unwrap()).norm();
+            sum += e * e;
+            n += 1.0;
+        }
+        let marker = (sum / n).sqrt();
+        assert!(marker < 5.0, "the moved marker stays {marker:.1} mm off");
+    }
+
+    #[test]
+    fn sparse_normal_equations_are_the_dense_products() {
+        let mut jac = DMatrix::from_fn(7, 5, |i, k| ((i * 5 + k) as f64).sin());
+        jac[(2, 3)] = 0.0;
+        jac.row_mut(4).fill(0.0);
+        let r = DVector::from_fn(7, |i, _| (i as f64).cos());
+        let (h, g) = normal_equations(&r, &jac);
+        assert!((h - jac.transpose() * &jac).norm() < 1e-12);
+        assert!((g - jac.transpose() * &r).norm() < 1e-12);
     }
 
     #[test]

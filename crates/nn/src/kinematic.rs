@@ -23,6 +23,10 @@ use locap_core::{Motion, Skeleton, Take, UpAxis, Vec3};
 use locap_label::ik::{Attachment, DofAxis, JointDofs, MarkerModel, SequenceConfig, solve_sequence};
 use locap_synth::Layout;
 
+/// Weight of the rotation directions a layout skeleton's degrees of freedom lock
+/// ([`locap_label::ik::IkConfig::locked`]) in [`KinematicSolver::from_layout`].
+pub const SOFT_LOCK: f64 = 0.01;
+
 /// A kinematic solver: a layout's markers attached to a skeleton.
 #[derive(Debug, Clone)]
 pub struct KinematicSolver {
@@ -130,7 +134,14 @@ impl KinematicSolver {
                 ),
             })
             .collect();
-        KinematicSolver::new(layout, &skeleton, Some(dofs))
+        let mut solver = KinematicSolver::new(layout, &skeleton, Some(dofs))?;
+        // A layout's degrees of freedom are a model's simplification (an OpenSim model welds the
+        // head to the torso; the importer drops the knee's spline-coupled rotations), so the
+        // directions they lock are a soft pull here, not a weld: a joint leaves its axes by a
+        // few degrees where the markers insist (10 degrees off an axis weigh as a marker 17 mm
+        // off). The CMU skeleton's locks are the ASF's own and stay stiff.
+        solver.config.ik.locked = SOFT_LOCK;
+        Ok(solver)
     }
 
     /// The CMU 41-marker set ([`Layout::cmu41`]) on the shipped network solver's CMU skeleton;
@@ -203,6 +214,38 @@ impl KinematicSolver {
         }
     }
 
+    /// Per frame, each layout marker's captured sample in `cleaned` (lab frame, mm; `None`:
+    /// not in the take, missing or an outlier): what [`KinematicSolver::solve_cleaned`] fits.
+    pub fn observed_frames(&self, cleaned: &Cleaned) -> Vec<Vec<Option<Vec3>>> {
+        let take = cleaned.take();
+        let order: Vec<Option<usize>> = self.markers.iter().map(|m| take.marker_index(m)).collect();
+        let m = take.marker_count();
+        (0..take.frame_count())
+            .map(|f| {
+                order
+                    .iter()
+                    .map(|k| {
+                        let k = (*k)?;
+                        if cleaned.visible.get(f * m + k).copied().unwrap_or(false) {
+                            take.position_mm(f, k)
+                        } else {
+                            None
+                        }
+                    })
+                    .collect()
+            })
+            .collect()
+    }
+
+    /// The template marker model in a lab with `up` axis (a Z-up lab sees the Y-up skeleton
+    /// turned by the lab convention).
+    pub fn lab_model(&self, up: UpAxis) -> MarkerModel {
+        match up {
+            UpAxis::Z => self.model.clone().in_lab(MarkerModel::y_up_in_z_up_lab()),
+            UpAxis::Y => self.model.clone(),
+        }
+    }
+
     /// Solves a cleaned take: its captured samples of the layout's markers (lab frame; a
     /// Z-up take is the Y-up skeleton turned by the lab convention), at `rate_hz`. Returns the
     /// motion on the subject's calibrated skeleton, in the skeleton's Y-up frame.
@@ -218,27 +261,8 @@ impl KinematicSolver {
             return Err(NnError::EmptyTake);
         }
         let started = std::time::Instant::now();
-        let order: Vec<Option<usize>> = self.markers.iter().map(|m| take.marker_index(m)).collect();
-        let m = take.marker_count();
-        let frames: Vec<Vec<Option<Vec3>>> = (0..take.frame_count())
-            .map(|f| {
-                order
-                    .iter()
-                    .map(|k| {
-                        let k = (*k)?;
-                        if cleaned.visible.get(f * m + k).copied().unwrap_or(false) {
-                            take.position_mm(f, k)
-                        } else {
-                            None
-                        }
-                    })
-                    .collect()
-            })
-            .collect();
-        let model = match take.up_axis {
-            UpAxis::Z => self.model.clone().in_lab(MarkerModel::y_up_in_z_up_lab()),
-            UpAxis::Y => self.model.clone(),
-        };
+        let frames = self.observed_frames(cleaned);
+        let model = self.lab_model(take.up_axis);
         let fit = solve_sequence(model, &frames, rate_hz, &self.config).map_err(config_error)?;
         let rms = fit.rms_mm(&frames);
         let skeleton = fit.model.skeleton().clone();

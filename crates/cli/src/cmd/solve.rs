@@ -15,7 +15,10 @@
 //! `--layout` (with a skeleton section, e.g. from `locap layout --from-opensim`, or with
 //! `--skeleton`), by default the CMU 41-marker layout on the shipped solver's skeleton. The
 //! default `--method auto` uses the network where its markers are all in the take and the
-//! kinematic solver elsewhere, saying so.
+//! kinematic solver elsewhere, saying so. A kinematic solve reports its marker residual and
+//! its tracking checks of issue 17: the largest joint rotation between consecutive frames, the
+//! frame pairs over 20 degrees, and the wrist joints' samples within 60 mm of their wrist
+//! markers' mean (`locap_eval::solver::wrists_within`), which needs no reference motion.
 //!
 //! Without `--model`, the solver shipped with locap is used (`locap_nn::shipped::solver`,
 //! `models/solver-cmu41.locapsv`: the CMU 41-marker set on the CMU ASF skeleton, built into the
@@ -29,6 +32,7 @@ use anyhow::{Context, Result};
 use clap::{Parser, ValueEnum};
 use locap_clean::FillConfig;
 use locap_core::{LengthUnit, UpAxis};
+use locap_eval::solver::{rotation_jumps, wrists_within};
 use locap_io::{axes, export};
 use locap_nn::kinematic::KinematicSolver;
 use locap_nn::solver::Solver;
@@ -140,6 +144,10 @@ struct Solved {
     /// The kinematic solver's marker residual (mm RMS), calibration residual before and after
     /// (mm RMS) and subject scale, when it solved.
     residual_mm: Option<(f64, (f64, f64), f64)>,
+    /// The kinematic solve's tracking checks (issue 17): the largest rotation of a joint
+    /// between consecutive frames (deg) and its joint, the frame pairs over 20 degrees, and the
+    /// share of wrist samples within 60 mm of their markers' mean (`None`: no known wrist).
+    tracking: Option<(f64, String, usize, Option<f64>)>,
 }
 
 /// Where each input's output goes: `output` itself for one named file, else a mirror of the
@@ -241,14 +249,18 @@ pub fn run(args: Args) -> Result<ExitCode> {
             }
             _ => false,
         };
-        let (motion, cleaned, residual_mm) = match (&kinematic, use_ik) {
+        let (motion, cleaned, residual_mm, tracking) = match (&kinematic, use_ik) {
             (Some(k), true) => {
                 let (motion, cleaned, report) = k.solve(&take, filler.as_ref())?;
-                (motion, cleaned, Some((report.residual_rms_mm, report.calibration_rms_mm, report.scale)))
+                // The motion is still in the skeleton's frame, as the checks compare it.
+                let (jump, joint, over) = rotation_jumps(&motion, &k.rotating(), 20.0);
+                let wrists = wrists_within(&motion, cleaned.take(), 60.0).map(|(share, _)| share);
+                let residual = (report.residual_rms_mm, report.calibration_rms_mm, report.scale);
+                (motion, cleaned, Some(residual), Some((jump, joint, over, wrists)))
             }
             _ => {
                 let (motion, cleaned) = solver.solve(&take, filler.as_ref())?;
-                (motion, cleaned, None)
+                (motion, cleaned, None, None)
             }
         };
         let seconds = t0.elapsed().as_secs_f64();
@@ -282,17 +294,25 @@ pub fn run(args: Args) -> Result<ExitCode> {
             rate_hz: motion.frame_rate_hz(),
             seconds,
             residual_mm,
+            tracking,
         })
     });
     let total: usize = done.iter().map(|(_, s)| s.frames).sum();
     let mut text = String::new();
     for (path, s) in &done {
-        let method = match s.residual_mm {
+        let mut method = match s.residual_mm {
             Some((r, (before, after), scale)) => format!(
                 ", kinematic, marker residual {r:.1} mm RMS; calibration {before:.1} -> {after:.1} mm, scale {scale:.3}"
             ),
             None => String::new(),
         };
+        if let Some((jump, joint, over, wrists)) = &s.tracking {
+            method
+                .push_str(&format!("; largest rotation jump {jump:.1} deg ({joint}), {over} frame pairs over 20 deg"));
+            if let Some(share) = wrists {
+                method.push_str(&format!(", wrists within 60 mm of their markers {:.1}%", 100.0 * share));
+            }
+        }
         text.push_str(&format!(
             "{}: {} frames at {} Hz -> {} ({:.0} frames/s{method})\n",
             path.display(),
