@@ -41,6 +41,7 @@ pub mod labeler;
 pub mod pose_fit;
 pub mod reacquire;
 pub mod start;
+pub mod subject;
 pub mod template;
 
 pub use cloud::PointFrames;
@@ -70,7 +71,8 @@ pub enum LabelError {
 /// How labeling starts.
 #[derive(Debug, Clone, Copy)]
 pub enum Start<'a> {
-    /// Fit the template to the first frame, whose vertical axis is given.
+    /// Fit the template to the first frame it is sure of, whose vertical axis is given
+    /// (another subject's take: calibrated on the take, [`subject::label_adapting`]).
     Fit(FitConfig, UpAxis),
     /// The first frame's labels are known: for each template marker, its point index.
     Known(&'a [Option<usize>]),
@@ -207,6 +209,77 @@ impl Labels {
         Confidence { per_marker, uncertain, rejected_points }
     }
 
+    /// The check of labels of a subject no template was made of: of the labeled
+    /// samples with at least one labeled rigid neighbour (template spread at most 12 mm), how
+    /// many keep every such edge within `tolerance_mm` of the edge's median length over these
+    /// labels (not the template's length: another subject's segments differ). Returns
+    /// (consistent, checked).
+    pub fn median_edge_consistency(
+        &self,
+        frames: &PointFrames,
+        template: &Template,
+        tolerance_mm: f64,
+    ) -> (usize, usize) {
+        let checks = self.median_edge_checks(frames, template, tolerance_mm);
+        let checked = checks.iter().filter(|c| matches!(c, Some(EdgeCheck::Kept | EdgeCheck::Broken))).count();
+        let consistent = checks.iter().filter(|c| **c == Some(EdgeCheck::Kept)).count();
+        (consistent, checked)
+    }
+
+    /// Per sample (`[frame * markers + marker]`) the check of
+    /// [`Labels::median_edge_consistency`]; `None` for a sample without a label.
+    fn median_edge_checks(
+        &self,
+        frames: &PointFrames,
+        template: &Template,
+        tolerance_mm: f64,
+    ) -> Vec<Option<EdgeCheck>> {
+        let m = self.markers;
+        let t = self.frame_count();
+        let rigid = |i: usize| template.edges()[i].iter().filter(|e| e.std_mm <= 12.0).map(|e| e.neighbour);
+        let distance = |f: usize, i: usize, j: usize| {
+            let points = frames.frame(f);
+            Some((points[self.get(f, i)?] - points[self.get(f, j)?]).norm())
+        };
+        // The median of every rigid edge over the frames where both ends are labeled.
+        let medians: Vec<Vec<(usize, f64)>> = (0..m)
+            .map(|i| {
+                rigid(i)
+                    .filter_map(|j| {
+                        let mut d: Vec<f64> = (0..t).filter_map(|f| distance(f, i, j)).collect();
+                        if d.is_empty() {
+                            return None;
+                        }
+                        let k = d.len() / 2;
+                        let (_, median, _) = d.select_nth_unstable_by(k, f64::total_cmp);
+                        Some((j, *median))
+                    })
+                    .collect()
+            })
+            .collect();
+        let mut out = vec![None; t * m];
+        for f in 0..t {
+            for (i, edges) in medians.iter().enumerate() {
+                if self.get(f, i).is_none() {
+                    continue;
+                }
+                let (mut any, mut ok) = (false, true);
+                for &(j, median) in edges {
+                    if let Some(d) = distance(f, i, j) {
+                        any = true;
+                        ok &= (d - median).abs() <= tolerance_mm;
+                    }
+                }
+                out[f * m + i] = Some(match (any, ok) {
+                    (false, _) => EdgeCheck::Unchecked,
+                    (true, true) => EdgeCheck::Kept,
+                    (true, false) => EdgeCheck::Broken,
+                });
+            }
+        }
+        out
+    }
+
     /// The edge check of marker `i`'s label in frame `f`; `None` when it has no label.
     fn check_sample(
         &self,
@@ -241,7 +314,7 @@ impl Labels {
 
 /// What the edge check says of one label.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum EdgeCheck {
+pub(crate) enum EdgeCheck {
     Kept,
     Broken,
     Unchecked,
@@ -344,9 +417,19 @@ pub struct Labeled {
     pub frames: PointFrames,
     /// The first frame's fit of the template.
     pub fit: InitialFit,
+    /// When the template's body was sure of no frame (another subject), the template
+    /// calibrated on the take that labeled it ([`subject::label_adapting`]): its edges are
+    /// this subject's, for confidences.
+    pub calibrated: Option<Template>,
 }
 
 impl Labeled {
+    /// The template whose distances the labels keep: the calibrated one, else `template`
+    /// (the one labeling was given).
+    pub fn subject_template<'a>(&'a self, template: &'a Template) -> &'a Template {
+        self.calibrated.as_ref().unwrap_or(template)
+    }
+
     /// Marker samples (frame x template marker) that took a point.
     pub fn labeled_samples(&self) -> usize {
         (0..self.labels.frame_count()).map(|f| self.labels.labeled_in(f)).sum()
@@ -402,10 +485,10 @@ fn label_take_with(
         UpAxis::Y => m.clone(),
     });
     check_size(&frames, template)?;
-    let fit = fit_start(&frames, template, raw.up_axis, &config.fit)?;
-    let labels = run(&frames, template, config, &fit, model)?;
+    let subject::Adapted { labels, fit, calibrated } =
+        subject::label_adapting(&frames, template, config, raw.up_axis, model)?;
     let take = labels.to_take(&frames, template.names(), Some(raw), config.keep_unlabeled);
-    Ok(Labeled { take, labels, frames, fit })
+    Ok(Labeled { take, labels, frames, fit, calibrated })
 }
 
 /// Labels every frame of `frames` with `template`'s markers. Returns the labels and, when
@@ -420,9 +503,10 @@ pub fn label_frames(
 ) -> Result<(Labels, Option<InitialFit>), LabelError> {
     check_size(frames, template)?;
     match start {
-        Start::Fit(fit_config, up) => {
-            let fit = fit_start(frames, template, up, &fit_config)?;
-            Ok((run(frames, template, config, &fit, pose_model)?, Some(fit)))
+        Start::Fit(fit, up) => {
+            let config = LabelConfig { fit, ..*config };
+            let adapted = subject::label_adapting(frames, template, &config, up, pose_model)?;
+            Ok((adapted.labels, Some(adapted.fit)))
         }
         Start::Fitted(fit) => {
             if fit.assignment.len() != template.marker_count() || fit.frame >= frames.frame_count() {

@@ -7,7 +7,7 @@
 use crate::body::Body;
 use crate::cloud::PointFrames;
 use crate::initial_fit::{FitConfig, InitialFit};
-use crate::pose_fit::fit_pose;
+use crate::pose_fit::{PoseFit, fit_pose};
 use crate::{LabelError, Template};
 use locap_clean::procrustes::{RigidTransform, align};
 
@@ -32,12 +32,23 @@ pub fn find_start(
     config: &FitConfig,
 ) -> Result<InitialFit, LabelError> {
     let m = template.marker_count();
-    let placeable = body.placeable();
+    find_start_with(frames, template, body.placeable(), config, |points| fit_pose(body, m, points, &[], &[]))
+}
+
+/// [`find_start`] with the fit of one frame's points given (the body places `placeable`
+/// markers).
+pub(crate) fn find_start_with(
+    frames: &PointFrames,
+    template: &Template,
+    placeable: usize,
+    config: &FitConfig,
+    fit_frame: impl Fn(&[locap_core::Vec3]) -> PoseFit,
+) -> Result<InitialFit, LabelError> {
     let step = ((TRY_EVERY_S * frames.frame_rate_hz()).round() as usize).max(1);
     let mut best: Option<InitialFit> = None;
     for f in (0..frames.frame_count()).step_by(step).take(MAX_TRIES) {
         let points = frames.frame(f);
-        let fit = fit_pose(body, m, points, &[], &[]);
+        let fit = fit_frame(points);
         let better = best.as_ref().is_none_or(|b| fit.sure_markers > b.sure_markers);
         if better {
             let (from, to): (Vec<_>, Vec<_>) = fit

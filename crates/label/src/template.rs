@@ -120,6 +120,11 @@ impl Template {
     pub fn body(&self) -> Option<&Body> {
         self.body.as_ref()
     }
+
+    /// The template with its body replaced (another subject's first fit, [`crate::subject`]).
+    pub(crate) fn with_body(&self, body: Body) -> Template {
+        Template { body: Some(body), ..self.clone() }
+    }
 }
 
 /// The `k` most stable neighbours of each marker with their mean distances, and the body

@@ -6,7 +6,10 @@
 //! template shows (rigid segments and their joints, `locap_label::body`) to the first raw
 //! frame it is sure of, whatever the pose, and runs forwards and backwards from there
 //! (`--fit rigid`: the older rigid fit of one template frame to the first frame, for takes
-//! that start in the template's pose). Output: one column per template marker (missing where
+//! that start in the template's pose). A take of another subject, whose joints the template's
+//! body does not fit, is labeled with the template calibrated on the take itself
+//! (`locap_label::subject`: a first fit with loose joints, then the subject's own distances).
+//! Output: one column per template marker (missing where
 //! no point was labeled); the points no marker took (ghosts) are dropped, or kept as `*0`,
 //! `*1`, ... with `--keep-unlabeled`. Everything else in the file (analog data, parameters)
 //! is kept.
@@ -210,14 +213,18 @@ fn label_one(
     );
     let m = template.marker_count();
     let t = labeled.labels.frame_count();
-    let confidence = labeled.labels.confidence(&labeled.frames, template, EDGE_TOLERANCE_MM);
+    // Another subject's labels are checked against the template calibrated on the take
+    // (its distances), not the template subject's.
+    let own = labeled.subject_template(template);
+    let confidence = labeled.labels.confidence(&labeled.frames, own, EDGE_TOLERANCE_MM);
     let (lines, uncertain) =
         confidence.parameters(template, labeled.take.first_frame).context("LOCAP:LABEL_UNCERTAIN")?;
     file.parameters.set_strings("LOCAP", "LABEL_CONFIDENCE", &lines);
     file.parameters.set_strings("LOCAP", "LABEL_UNCERTAIN", &uncertain);
     c3d::write_path(&file, output)?;
 
-    let (consistent, checked) = labeled.labels.edge_consistency(&labeled.frames, template, EDGE_TOLERANCE_MM);
+    let (consistent, checked) = labeled.labels.edge_consistency(&labeled.frames, own, EDGE_TOLERANCE_MM);
+    let (near_median, of) = labeled.labels.median_edge_consistency(&labeled.frames, template, EDGE_TOLERANCE_MM);
     let labeled_samples = confidence.labeled();
     let uncertain_samples = confidence.uncertain_samples();
     let percent = |n: usize, of: usize| 100.0 * n as f64 / of.max(1) as f64;
@@ -226,7 +233,8 @@ fn label_one(
         "{}: {t} frames, {m} markers; {labeled_samples} marker samples labeled ({:.2}% of {}), of which \
          {uncertain_samples} uncertain ({:.2}%: a rigid edge broken by more than {EDGE_TOLERANCE_MM} mm, or no \
          labeled rigid neighbour); {} raw points rejected{}; first fit at frame {}, sure of {} markers, {:.1} mm rms; \
-         {:.2}% of checked samples keep their rigid edges within {EDGE_TOLERANCE_MM} mm\n",
+         {:.2}% of checked samples keep their rigid edges within {EDGE_TOLERANCE_MM} mm{}, {:.2}% within \
+         {EDGE_TOLERANCE_MM} mm of the edges' median over the take\n",
         output.display(),
         percent(labeled_samples, t * m),
         t * m,
@@ -237,6 +245,8 @@ fn label_one(
         fit.sure_markers,
         fit.rms_mm,
         100.0 * consistent as f64 / checked.max(1) as f64,
+        if labeled.calibrated.is_some() { " (of the template calibrated on the take: another subject)" } else { "" },
+        100.0 * near_median as f64 / of.max(1) as f64,
     );
     let never: Vec<&str> = confidence
         .per_marker

@@ -1,0 +1,299 @@
+//! Labeling a subject the template was not recorded on.
+//!
+//! The template's body ([`crate::body`]) is the template subject's: its segment shapes,
+//! joint centres and tolerances. Marker plates and clusters keep their shapes from subject to
+//! subject, but another subject's bones are longer or shorter and the plates sit elsewhere on
+//! them, so the joint centres in the segments' frames move by centimetres, more than the
+//! joints' tolerances; the first fit then places the upper body and leaves the rest unsure.
+//! The labeling paper fits the subject's own model to the first frame ("T-pose model and
+//! marker offsets relative to the inboard joints", section 3, last paragraph) and tracks
+//! with its distances; here the subject's model is found on the take itself:
+//!
+//! 1. *First fit with loose joints*: the template's body places the segments it is sure of
+//!    as they are; the body with every joint's tolerance widened by [`JOINT_SLACK_MM`] then
+//!    places the others, those held as anchors (so a loosened joint still has its sure
+//!    side). Labeling starts from the first frame sure of [`FIRST_PASS_FRACTION`] of the
+//!    markers and runs forwards and backwards ([`crate::start`]).
+//! 2. *Calibration on the take*: the labeled take, without the samples that break an edge to
+//!    a rigid neighbour by more than [`CALIBRATION_TOLERANCE_MM`] from the edge's median,
+//!    gives a template of this subject ([`calibrated_template`]: its rigid edges and body),
+//!    and the take is labeled again from scratch with it (the loose template body placing
+//!    what the calibrated one lacks), so the first fit, tracking's edge costs and
+//!    re-acquisition use this subject's distances. Rounds repeat while more samples keep
+//!    their segments' distances, at most [`CALIBRATION_ROUNDS`] times.
+//!
+//! A take whose subject the template's own body fits is labeled as before: none of this
+//! runs.
+
+use crate::body::Body;
+use crate::ik::MarkerModel;
+use crate::pose_fit::fit_pose;
+use crate::{
+    EdgeCheck, FitConfig, FitMethod, InitialFit, LabelConfig, LabelError, Labels, PointFrames, Template, fit_start,
+};
+use locap_clean::procrustes::{RigidTransform, align};
+use locap_core::{UpAxis, Vec3};
+
+impl Body {
+    /// The body with `slack_mm` added to every joint's tolerance.
+    pub fn with_joint_slack(&self, slack_mm: f64) -> Body {
+        let mut body = self.clone();
+        for j in &mut body.joints {
+            j.tolerance_mm += slack_mm;
+        }
+        body
+    }
+}
+
+/// Widening of every joint's tolerance for the first fit of another subject (mm): the
+/// template's joint centres sit where the template subject's markers put them in their
+/// segments' frames, and another subject's markers sit centimetres elsewhere on the bone.
+/// Segment shapes (marker plates, clusters) keep their own tolerances: they are the
+/// subject's markers, not the subject.
+pub const JOINT_SLACK_MM: f64 = 100.0;
+
+/// A first fit of another subject (before calibration) starts tracking when it is sure of
+/// this share of the markers the body places: the calibrated fit that labels the take
+/// needs [`crate::FitConfig::min_matched_fraction`] of its own.
+pub const FIRST_PASS_FRACTION: f64 = 0.4;
+
+/// Calibrations on the take at most.
+pub const CALIBRATION_ROUNDS: usize = 4;
+
+/// A labeled sample is kept for calibration when every edge to its labeled rigid neighbours
+/// is within this of the edge's median length over the labeled take (mm).
+pub const CALIBRATION_TOLERANCE_MM: f64 = 20.0;
+
+/// Labels of a take, how labeling started, and the template of the take's subject when it
+/// was calibrated on the take.
+#[derive(Debug, Clone)]
+pub struct Adapted {
+    /// The labels (template marker order).
+    pub labels: Labels,
+    /// The first fit the labels start from.
+    pub fit: InitialFit,
+    /// The template calibrated on the take (same markers, this subject's distances), when the
+    /// template's own body was not sure of any frame.
+    pub calibrated: Option<Template>,
+}
+
+/// Labels `frames` (vertical axis `up`) with `template`: from the template's own first fit
+/// when it is sure of a frame; else, for another subject, from the first fit with loose
+/// joints, then again with the template calibrated on the labels (module docs).
+///
+/// # Errors
+/// [`LabelError::FirstFrame`] when neither fit is sure of a frame (the message says how many
+/// markers each was sure of), or the calibrated template's fit is not.
+pub fn label_adapting(
+    frames: &PointFrames,
+    template: &Template,
+    config: &LabelConfig,
+    up: UpAxis,
+    pose_model: Option<MarkerModel>,
+) -> Result<Adapted, LabelError> {
+    let own = fit_start(frames, template, up, &config.fit);
+    match (own, template.body()) {
+        (Err(LabelError::FirstFrame(own)), Some(_)) if config.fit.method == FitMethod::Articulated => {
+            label_calibrating(frames, template, config, pose_model)
+                .map_err(|e| LabelError::FirstFrame(format!("{own}; for another subject: {}", reason(e))))
+        }
+        (own, _) => {
+            let fit = own?;
+            let labels = crate::run(frames, template, config, &fit, pose_model)?;
+            Ok(Adapted { labels, fit, calibrated: None })
+        }
+    }
+}
+
+/// Labels `frames` with `template` calibrated on them (module docs, steps 1 and 2), whether
+/// or not the template's own body fits the subject.
+///
+/// # Errors
+/// [`LabelError::Template`] for a template without a body; [`LabelError::FirstFrame`] when
+/// the first fit with loose joints is sure of no frame.
+pub fn label_calibrating(
+    frames: &PointFrames,
+    template: &Template,
+    config: &LabelConfig,
+    pose_model: Option<MarkerModel>,
+) -> Result<Adapted, LabelError> {
+    let body = template
+        .body()
+        .ok_or_else(|| LabelError::Template("the template shows no rigid segment of three markers".into()))?;
+    let loose = template.with_body(body.with_joint_slack(JOINT_SLACK_MM));
+    let loose_body = loose.body().unwrap_or(body);
+    let first_pass = FitConfig { min_matched_fraction: FIRST_PASS_FRACTION, ..config.fit };
+    let fit = two_stage_start(frames, &loose, body, loose_body, &first_pass)?;
+    let mut labels = crate::run(frames, &loose, config, &fit, None)?;
+    let mut best: Option<(usize, Adapted)> = None;
+    let mut last = fit;
+    // Round 0 scores the first pass; each later one labels the take again with the template
+    // calibrated on the last labels, while more samples keep their segments' distances.
+    for round in 0..=CALIBRATION_ROUNDS {
+        let calibrated = calibrated_template(&labels, frames, template)?;
+        let (kept, _) = labels.median_edge_consistency(frames, template, CALIBRATION_TOLERANCE_MM);
+        if best.as_ref().is_some_and(|(k, _)| kept <= *k) {
+            break;
+        }
+        best =
+            Some((kept, Adapted { labels: labels.clone(), fit: last.clone(), calibrated: Some(calibrated.clone()) }));
+        if round == CALIBRATION_ROUNDS {
+            break;
+        }
+        // The calibrated body places what the last labels showed; segments they missed are
+        // placed by the template's loose body, anchored on the calibrated ones.
+        let Some(own_body) = calibrated.body() else { break };
+        let Ok(fit) = two_stage_start(frames, &calibrated, own_body, loose_body, &config.fit) else { break };
+        labels = crate::run(frames, &calibrated, config, &fit, pose_model.clone())?;
+        last = fit;
+    }
+    // Cannot be none: round 0 sets it.
+    best.map(|(_, a)| a).ok_or_else(|| LabelError::FirstFrame("no calibration round".into()))
+}
+
+/// The start ([`crate::start::find_start`]) with two bodies of the same markers: `tight`
+/// places the segments whose shapes and joints fit as they are (plates and clusters the
+/// technician placed alike), `loose` then places the others with those held as anchors, so a
+/// joint loosened for this subject still has its sure neighbour's side of it.
+fn two_stage_start(
+    frames: &PointFrames,
+    template: &Template,
+    tight: &Body,
+    loose: &Body,
+    config: &FitConfig,
+) -> Result<InitialFit, LabelError> {
+    let m = template.marker_count();
+    let fit_frame = |points: &[Vec3]| {
+        let first = fit_pose(tight, m, points, &[], &[]);
+        let mut taken = vec![false; points.len()];
+        for p in first.assignment.iter().flatten() {
+            taken[*p] = true;
+        }
+        // The loose body's segments are not the tight one's (a calibrated body groups
+        // markers its own way): anchor each loose segment all of whose markers the first
+        // fit placed.
+        let anchors: Vec<Option<RigidTransform>> = loose
+            .segments
+            .iter()
+            .map(|seg| {
+                let (from, to): (Vec<Vec3>, Vec<Vec3>) = seg
+                    .markers
+                    .iter()
+                    .zip(&seg.local_mm)
+                    .map(|(&i, l)| Some((*l, first.expected_mm[i]?)))
+                    .collect::<Option<Vec<_>>>()?
+                    .into_iter()
+                    .unzip();
+                align(&from, &to)
+            })
+            .collect();
+        let rest = fit_pose(loose, m, points, &taken, &anchors);
+        let mut merged = first;
+        for i in 0..m {
+            if merged.expected_mm[i].is_none() {
+                merged.assignment[i] = rest.assignment[i];
+                merged.expected_mm[i] = rest.expected_mm[i];
+            }
+        }
+        merged.sure_markers = merged.expected_mm.iter().flatten().count();
+        merged
+    };
+    crate::start::find_start_with(frames, template, loose.placeable(), config, fit_frame)
+}
+
+fn reason(e: LabelError) -> String {
+    match e {
+        LabelError::FirstFrame(reason) => reason,
+        other => other.to_string(),
+    }
+}
+
+/// The template of the subject `labels` show: the labeled take of `frames` with every sample
+/// that breaks an edge to a labeled rigid neighbour (rigid in `template`) by more than
+/// [`CALIBRATION_TOLERANCE_MM`] from the edge's median over the take left out, as a
+/// template (its edges, body and reference frame from these frames; same markers and order
+/// as `template`).
+///
+/// # Errors
+/// [`LabelError::Template`] when too little is left to make a template.
+pub fn calibrated_template(labels: &Labels, frames: &PointFrames, template: &Template) -> Result<Template, LabelError> {
+    let checks = labels.median_edge_checks(frames, template, CALIBRATION_TOLERANCE_MM);
+    let mut take = labels.to_take(frames, template.names(), None, false);
+    let m = template.marker_count();
+    for f in 0..labels.frame_count() {
+        for i in 0..m {
+            if checks[f * m + i] == Some(EdgeCheck::Broken) {
+                // Cannot fail: frame and column are inside the take made above.
+                let _ = take.set_position_mm(f, i, None);
+            }
+        }
+    }
+    Template::from_take(&take, None)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::body::tests::hinge_take;
+    use nalgebra::Rotation3;
+
+    /// Another subject on the hinge take's body: the same plates, the lower one strapped
+    /// 120 mm further down its bone (its joint centre moves by that in the plate's frame),
+    /// swinging the other way and turned; points in a new order every frame.
+    fn other_subject(frames: usize) -> (PointFrames, Vec<Vec<usize>>) {
+        let upper = [[0.0, 0.0, 60.0], [80.0, 0.0, 200.0], [-50.0, 40.0, 320.0], [0.0, -60.0, 150.0]];
+        let lower = [[0.0, 30.0, -80.0], [70.0, 0.0, -220.0], [-40.0, -50.0, -300.0], [20.0, 60.0, -150.0]];
+        let mut out = PointFrames::with_rate(100.0);
+        let mut truth = Vec::new();
+        for f in 0..frames {
+            let s = f as f64 / frames as f64;
+            let body = Rotation3::from_euler_angles(0.0, 0.0, 2.5 - s);
+            let knee = Rotation3::from_euler_angles(1.0 + 0.8 * s, 0.0, 0.0);
+            let origin = Vec3::new(-300.0 * s, 200.0, 1000.0);
+            let mut points: Vec<Vec3> = upper.iter().map(|p| origin + body * Vec3::from(*p)).collect();
+            points.extend(lower.iter().map(|p| origin + body * knee * (Vec3::from(*p) + Vec3::new(0.0, 0.0, -120.0))));
+            points.push(origin + body * Vec3::new(100.0, 100.0, 100.0));
+            // Marker k is at point order[k].
+            let order: Vec<usize> = (0..9).map(|k| (k * 4 + f) % 9).collect();
+            let mut cloud = vec![Vec3::zeros(); 9];
+            for (k, &p) in order.iter().enumerate() {
+                cloud[p] = points[k];
+            }
+            out.push_frame(cloud.into_iter().enumerate().map(|(c, p)| (c as u32, p)));
+            truth.push(order);
+        }
+        (out, truth)
+    }
+
+    #[test]
+    fn another_subject_is_labeled_after_calibration() {
+        let template = Template::from_take(&hinge_take(200), None).unwrap();
+        let (frames, truth) = other_subject(200);
+        let config = LabelConfig::default();
+        let adapted = label_calibrating(&frames, &template, &config, None).unwrap();
+        assert!(adapted.calibrated.is_some());
+        let mut right = 0;
+        for (f, order) in truth.iter().enumerate() {
+            for (m, &point) in order.iter().enumerate().take(8) {
+                let got = adapted.labels.get(f, m);
+                assert!(got.is_none() || got == Some(point), "frame {f} marker {m}: {got:?}");
+                right += usize::from(got == Some(point));
+            }
+        }
+        // The segment markers: every one labeled in nearly every frame.
+        assert!(right >= 8 * 195, "{right} of {}", 8 * 200);
+        let (kept, checked) = adapted.labels.median_edge_consistency(&frames, &template, 20.0);
+        assert_eq!(kept, checked);
+    }
+
+    #[test]
+    fn joint_slack_widens_joints_only() {
+        let template = Template::from_take(&hinge_take(200), None).unwrap();
+        let body = template.body().unwrap();
+        let loose = body.with_joint_slack(50.0);
+        assert_eq!(loose.segments, body.segments);
+        for (a, b) in loose.joints.iter().zip(&body.joints) {
+            assert!((a.tolerance_mm - b.tolerance_mm - 50.0).abs() < 1e-9);
+        }
+    }
+}
