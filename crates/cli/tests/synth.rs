@@ -69,6 +69,51 @@ fn stats_then_synth_on_cmu_motion() {
     }
 }
 
+/// `--mirror` and the subject-variation flags: a zero tilt draws the very subject the defaults
+/// draw (the same bytes), a mirrored or tilted subject gives another take, and a range that is
+/// not one is a usage error before any take is read.
+#[test]
+fn synth_mirror_and_subject_flags() {
+    let Some(data) = shared_data() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let run = |name: &str, extra: &[&str]| {
+        let out = locap()
+            .args(["synth", "--format", "shard", "--seed", "3", "--motion"])
+            .arg(data.join("cmu-asfamc/02/02_01.amc"))
+            .args(extra)
+            .arg("-o")
+            .arg(dir.path().join(name))
+            .output()
+            .unwrap();
+        assert!(out.status.success(), "{name}: {}", String::from_utf8_lossy(&out.stderr));
+        std::fs::read(dir.path().join(name).join("02_01.shard")).unwrap()
+    };
+    let plain = run("plain", &[]);
+    assert_eq!(plain, run("zero", &["--bone-tilt-deg", "0"]), "a zero tilt changed the default subject");
+    let mirrored = run("mirror", &["--mirror"]);
+    let wide = run("wide", &["--bone-scale", "0.87", "1.13", "--bone-scale-sd", "0.04", "--offset-jitter-mm", "10"]);
+    let tilted = run("tilt", &["--bone-tilt-deg", "4"]);
+    for (name, bytes) in [("mirror", &mirrored), ("wide", &wide), ("tilt", &tilted)] {
+        assert_ne!(&plain, bytes, "{name} wrote the default take");
+        let reader = locap_synth::shard::ShardReader::new(bytes.as_slice()).unwrap();
+        assert_eq!((reader.header().frames, reader.header().markers.len()), (343, 41), "{name}");
+    }
+    let out = locap()
+        .args(["synth", "--bone-scale", "1.2", "0.8", "--motion"])
+        .arg(data.join("cmu-asfamc/02/02_01.amc"))
+        .arg("-o")
+        .arg(dir.path().join("bad"))
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    assert!(
+        String::from_utf8_lossy(&out.stderr).contains("subject variation"),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(!dir.path().join("bad").exists(), "nothing is written after a usage error");
+}
+
 /// Bad input gives a clear message and the documented exit status.
 #[test]
 fn synth_bad_input() {

@@ -7,12 +7,18 @@
 //! - **bone-length scale**: one global factor `U(min, max)` times a small per-bone factor
 //!   `N(1, sd)`; the root trajectory scales with the global factor (a taller subject takes
 //!   longer strides and carries its pelvis higher) and so do the marker offsets;
+//! - **bone tilt** (off by default): each rest offset turned by a small random rotation
+//!   (`N(0, sd)` per axis), since subjects differ in rest pose as well as in bone length (CMU's
+//!   ASF files give hip, clavicle, neck and foot bones directions that differ by several
+//!   degrees between subjects);
 //! - **offset jitter**: each marker's offset moves by `N(0, sd)` mm per axis, once per take
 //!   (markers are never placed twice on exactly the same spot);
 //! - **soft-tissue wobble**: a smooth displacement in the joint's frame, per marker and axis a
 //!   sum of three sinusoids with random frequency (log-uniform in a band, default 0.5-4 Hz) and
 //!   phase, scaled to a given RMS amplitude and by the marker's `soft_tissue` factor;
-//! - **resampling** to a target rate: root positions linearly, rotations by slerp.
+//! - **resampling** to a target rate: root positions linearly, rotations by slerp;
+//! - **mirroring** ([`mirror_motion`]): the motion reflected across the body's sagittal plane,
+//!   left and right joints exchanged, a second motion from every motion a data set has.
 //!
 //! Everything random comes from the caller's RNG, so a seed reproduces a take exactly.
 
@@ -117,6 +123,10 @@ pub struct Variation {
     pub wobble_mm: f64,
     /// Frequency band of the wobble, Hz.
     pub wobble_hz: [f64; 2],
+    /// Standard deviation of the per-bone tilt of the rest offsets, degrees per axis (0: the
+    /// skeleton's own bone directions; files written before the field read as 0).
+    #[serde(default)]
+    pub bone_tilt_sd_deg: f64,
 }
 
 impl Default for Variation {
@@ -128,6 +138,7 @@ impl Default for Variation {
             offset_jitter_mm: 4.0,
             wobble_mm: 2.0,
             wobble_hz: [0.5, 4.0],
+            bone_tilt_sd_deg: 0.0,
         }
     }
 }
@@ -141,6 +152,7 @@ impl Variation {
             offset_jitter_mm: 0.0,
             wobble_mm: 0.0,
             wobble_hz: [1.0, 1.0],
+            bone_tilt_sd_deg: 0.0,
         }
     }
 
@@ -151,7 +163,11 @@ impl Variation {
             && lo > 0.0
             && hi >= lo
             && hi.is_finite()
-            && [self.bone_scale_sd, self.offset_jitter_mm, self.wobble_mm].iter().all(|v| v.is_finite() && *v >= 0.0)
+            && [self.bone_scale_sd, self.offset_jitter_mm, self.wobble_mm, self.bone_tilt_sd_deg]
+                .iter()
+                .all(|v| v.is_finite() && *v >= 0.0)
+            // Beyond a right angle a "tilt" is another skeleton, not a subject.
+            && self.bone_tilt_sd_deg <= 90.0
             && f0.is_finite()
             && f0 > 0.0
             && f1 >= f0
@@ -183,6 +199,10 @@ pub struct Subject {
     pub bone_scales: Vec<f64>,
     /// Offset jitter of each marker in its joint frame, mm.
     pub jitter_mm: Vec<[f64; 3]>,
+    /// Tilt of each joint's rest offset, a rotation vector (axis times angle, radians); empty
+    /// without tilt.
+    #[serde(default)]
+    pub bone_tilt_rad: Vec<[f64; 3]>,
     /// Wobble sinusoids per marker and axis.
     wobble: Vec<[Vec<Wave>; 3]>,
 }
@@ -212,7 +232,28 @@ impl Subject {
                 })
             })
             .collect();
-        Subject { global_scale, bone_scales, jitter_mm, wobble }
+        // Drawn last and only when asked for, so that the seeds of tilt-free data sets keep
+        // drawing the same subjects.
+        let sd = variation.bone_tilt_sd_deg.to_radians();
+        let bone_tilt_rad =
+            if sd > 0.0 { (0..joints).map(|_| [0; 3].map(|_| sd * normal(rng))).collect() } else { vec![] };
+        Subject { global_scale, bone_scales, jitter_mm, bone_tilt_rad, wobble }
+    }
+
+    /// `skeleton`'s rest offsets turned by this subject's bone tilts (unchanged without tilt).
+    ///
+    /// # Errors
+    /// None in practice: the joints keep their names and parents.
+    pub fn tilt(&self, skeleton: &Skeleton) -> Result<Skeleton, SkeletonError> {
+        if self.bone_tilt_rad.is_empty() {
+            return Ok(skeleton.clone());
+        }
+        let joints = skeleton.joints().iter().zip(self.bone_tilt_rad.iter().chain(std::iter::repeat(&[0.0; 3])));
+        Skeleton::new(
+            joints
+                .map(|(j, r)| Joint { offset_mm: Quat::from_scaled_axis(Vec3::from(*r)) * j.offset_mm, ..j.clone() })
+                .collect(),
+        )
     }
 
     /// Wobble displacement of `marker` at time `t_s`, mm in the joint frame.
@@ -343,9 +384,85 @@ pub fn synthesize(
         Some(hz) => resample(motion, hz)?,
         None => motion.clone(),
     };
-    let scaled = scale_motion(&resampled, &subject.bone_scales, subject.global_scale)?;
+    let mut scaled = scale_motion(&resampled, &subject.bone_scales, subject.global_scale)?;
+    if !subject.bone_tilt_rad.is_empty() {
+        let skeleton = subject.tilt(&scaled.skeleton)?;
+        let n = scaled.frame_count();
+        let rotations = (0..n).flat_map(|f| scaled.local_rotations(f).iter().copied()).collect();
+        let root = (0..n).map(|f| scaled.root_position_mm(f)).collect();
+        scaled = Motion::new(skeleton, rotations, root, scaled.frame_rate_hz())?;
+    }
     let take = markers_of(&scaled, &bound, &subject, config.lab)?;
     Ok(Synthesized { take, motion: scaled, subject })
+}
+
+/// The joint a joint mirrors onto: the one named with its side exchanged (a leading `l`/`r`,
+/// `L`/`R` or `Left`/`Right`), itself when no such joint exists (`lowerback`, `Hips`).
+fn mirror_partner(skeleton: &Skeleton, k: usize) -> usize {
+    let name = &skeleton.joints()[k].name;
+    let swapped = [("Left", "Right"), ("Right", "Left"), ("l", "r"), ("r", "l"), ("L", "R"), ("R", "L")]
+        .iter()
+        .filter_map(|(a, b)| name.strip_prefix(a).map(|rest| format!("{b}{rest}")));
+    for other in swapped {
+        if let Some(p) = skeleton.joints().iter().position(|j| j.name == other) {
+            return p;
+        }
+    }
+    k
+}
+
+/// `motion` reflected across the plane normal to its `lateral` axis (0, 1, 2 for x, y, z of the
+/// motion frame; CMU's ASF and BVH skeletons have their left side at +x, so 0): every joint
+/// takes its partner's rest offset and local rotation, reflected ([`mirror_partner`]: `lfemur`
+/// and `rfemur`, `LeftHip` and `RightHip`), and the root moves on the reflected path. A
+/// rotation `R` reflects as `M R M` with `M` the reflection, again a rotation; in the
+/// world-aligned rest frames of [`forward_kinematics`](locap_core::skeleton::forward_kinematics)
+/// that gives exactly the mirrored pose, so markers synthesized from it are those of a subject
+/// doing the motion with the other hand.
+///
+/// # Errors
+/// `lateral` is not 0, 1 or 2, or the left and right joints do not pair up (a joint and its
+/// partner with parents that are not partners too).
+pub fn mirror_motion(motion: &Motion, lateral: usize) -> Result<Motion, SynthError> {
+    if lateral > 2 {
+        return Err(SynthError::BadSetting(format!("mirror axis {lateral} is not 0, 1 or 2 (x, y, z)")));
+    }
+    let sk = &motion.skeleton;
+    let partner: Vec<usize> = (0..sk.len()).map(|k| mirror_partner(sk, k)).collect();
+    let reflect = |mut v: Vec3| {
+        v[lateral] = -v[lateral];
+        v
+    };
+    for (k, j) in sk.joints().iter().enumerate() {
+        let p = &sk.joints()[partner[k]];
+        if partner[partner[k]] != k || j.parent.map(|q| partner[q]) != p.parent {
+            return Err(SynthError::BadSetting(format!(
+                "joints {} and {} do not mirror: their parents are not left/right partners",
+                j.name, p.name
+            )));
+        }
+    }
+    let joints = sk
+        .joints()
+        .iter()
+        .zip(&partner)
+        .map(|(j, &p)| Joint { offset_mm: reflect(sk.joints()[p].offset_mm), ..j.clone() });
+    let skeleton = Skeleton::new(joints.collect())?;
+    // The quaternion of M R M: the vector part reflected and negated (a reflection turns the
+    // sense of rotation), i.e. every component but the lateral one negated.
+    let reflect_rotation = |q: &Quat| {
+        let mut v = -q.imag();
+        v[lateral] = -v[lateral];
+        Quat::new_normalize(nalgebra::Quaternion::from_parts(q.w, v))
+    };
+    let n = motion.frame_count();
+    let mut rotations = Vec::with_capacity(n * sk.len());
+    for f in 0..n {
+        let local = motion.local_rotations(f);
+        rotations.extend(partner.iter().map(|&p| reflect_rotation(&local[p])));
+    }
+    let root = (0..n).map(|f| reflect(motion.root_position_mm(f))).collect();
+    Ok(Motion::new(skeleton, rotations, root, motion.frame_rate_hz())?)
 }
 
 /// Marker positions of `bound` on every frame of `motion` for `subject`, in `lab`.
@@ -469,6 +586,114 @@ mod tests {
         assert!(e.is_ok(), "{e:?}");
         let config = SynthConfig { rate_hz: Some(1e9), ..SynthConfig::default() };
         assert!(matches!(config.validate(), Err(SynthError::BadSetting(_))));
+    }
+
+    /// A left/right skeleton: root, two legs, a spine that starts with an `l` but has no `r`
+    /// partner.
+    fn two_legs(frames: usize) -> Motion {
+        let sk = Skeleton::new(vec![
+            joint("root", None, [0.0; 3]),
+            joint("lfemur", Some(0), [90.0, -20.0, 5.0]),
+            joint("ltibia", Some(1), [0.0, -400.0, 10.0]),
+            joint("rfemur", Some(0), [-95.0, -20.0, 0.0]),
+            joint("rtibia", Some(3), [0.0, -410.0, 0.0]),
+            joint("lowerback", Some(0), [0.0, 150.0, -10.0]),
+        ])
+        .unwrap();
+        let mut rotations = Vec::new();
+        let mut root = Vec::new();
+        for f in 0..frames {
+            let t = f as f64 / 120.0;
+            rotations.push(EulerOrder::ZXY.to_quat_deg([10.0 * t, 5.0, 30.0 * t]));
+            rotations.push(EulerOrder::ZXY.to_quat_deg([20.0 * (3.0 * t).sin(), 40.0 * t, 7.0]));
+            rotations.push(EulerOrder::ZXY.to_quat_deg([0.0, 60.0 * (2.0 * t).sin().abs(), 0.0]));
+            rotations.push(EulerOrder::ZXY.to_quat_deg([-15.0, 10.0 * t, 3.0]));
+            rotations.push(EulerOrder::ZXY.to_quat_deg([5.0, 20.0, -30.0 * t]));
+            rotations.push(EulerOrder::ZXY.to_quat_deg([12.0, -8.0 * t, 4.0]));
+            root.push(Vec3::new(500.0 * t, 900.0, 80.0 * t));
+        }
+        Motion::new(sk, rotations, root, 120.0).unwrap()
+    }
+
+    /// The mirrored motion's joints sit where the original's partners sit, reflected; the
+    /// mirror of the mirror is the motion again.
+    #[test]
+    fn mirroring_reflects_every_joint_onto_its_partner() {
+        let m = two_legs(50);
+        let partners = [0, 3, 4, 1, 2, 5];
+        for lateral in 0..3 {
+            let mirrored = mirror_motion(&m, lateral).unwrap();
+            for f in [0, 17, 49] {
+                let (a, b) = (m.forward_kinematics(f), mirrored.forward_kinematics(f));
+                for (k, &p) in partners.iter().enumerate() {
+                    let mut x = a.positions_mm[p];
+                    x[lateral] = -x[lateral];
+                    assert!((b.positions_mm[k] - x).norm() < 1e-9, "axis {lateral} frame {f} joint {k}");
+                }
+            }
+            let back = mirror_motion(&mirrored, lateral).unwrap();
+            for f in 0..50 {
+                assert!((back.root_position_mm(f) - m.root_position_mm(f)).norm() < 1e-9);
+                for (q, r) in back.local_rotations(f).iter().zip(m.local_rotations(f)) {
+                    assert!(q.angle_to(r) < 1e-9);
+                }
+            }
+        }
+        assert!(matches!(mirror_motion(&m, 3), Err(SynthError::BadSetting(_))));
+    }
+
+    /// A left joint whose partner hangs off another parent cannot be mirrored.
+    #[test]
+    fn unpaired_sides_are_an_error() {
+        let sk = Skeleton::new(vec![
+            joint("root", None, [0.0; 3]),
+            joint("lfemur", Some(0), [90.0, -20.0, 0.0]),
+            joint("rfemur", Some(1), [-90.0, -20.0, 0.0]),
+        ])
+        .unwrap();
+        let m = Motion::new(sk, vec![Quat::identity(); 3], vec![Vec3::zeros()], 120.0).unwrap();
+        assert!(matches!(mirror_motion(&m, 0), Err(SynthError::BadSetting(_))));
+    }
+
+    /// Tilt turns bones without changing their length, and without it the subjects are the
+    /// ones the same seed drew before the setting existed (no extra draws).
+    #[test]
+    fn bone_tilt_keeps_lengths_and_old_seeds() {
+        let m = two_legs(20);
+        let soft = [1.0; 2];
+        let plain = Variation::default();
+        let tilted = Variation { bone_tilt_sd_deg: 5.0, ..Variation::default() };
+        let a = Subject::draw(&plain, 6, &soft, &mut rand::rngs::StdRng::seed_from_u64(4));
+        let b = Subject::draw(&tilted, 6, &soft, &mut rand::rngs::StdRng::seed_from_u64(4));
+        assert!(a.bone_tilt_rad.is_empty());
+        assert_eq!((a.global_scale, &a.bone_scales, &a.jitter_mm), (b.global_scale, &b.bone_scales, &b.jitter_mm));
+        let sk = b.tilt(&m.skeleton).unwrap();
+        let mut turned = 0;
+        for (x, y) in m.skeleton.joints().iter().zip(sk.joints()) {
+            assert!((x.offset_mm.norm() - y.offset_mm.norm()).abs() < 1e-9);
+            if x.offset_mm.norm() > 0.0 && x.offset_mm.angle(&y.offset_mm) > 1e-3 {
+                turned += 1;
+            }
+        }
+        assert_eq!(turned, 5, "every bone of non-zero length turns");
+        let config = SynthConfig { variation: tilted, ..SynthConfig::default() };
+        let out = synthesize(&m, &layout_two_legs(), &config, &mut rand::rngs::StdRng::seed_from_u64(4)).unwrap();
+        assert_eq!(
+            out.motion.skeleton.joints()[2].offset_mm,
+            b.tilt(&scale_motion(&m, &b.bone_scales, b.global_scale).unwrap().skeleton).unwrap().joints()[2].offset_mm
+        );
+        let bad = Variation { bone_tilt_sd_deg: -1.0, ..Variation::default() };
+        assert!(matches!(
+            SynthConfig { variation: bad, ..SynthConfig::default() }.validate(),
+            Err(SynthError::BadSetting(_))
+        ));
+    }
+
+    fn layout_two_legs() -> Layout {
+        crate::test_util::layout(vec![
+            marker("LKNE", "ltibia", [40.0, 0.0, 0.0]),
+            marker("RKNE", "rtibia", [-40.0, 0.0, 0.0]),
+        ])
     }
 
     #[test]

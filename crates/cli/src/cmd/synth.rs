@@ -12,7 +12,7 @@ use locap_core::{GapStatistics, LengthUnit};
 use locap_synth::Layout;
 use locap_synth::augment::{AugmentConfig, OcclusionMode, Rounding, augment, ks_statistic};
 use locap_synth::gap_model::GapModel;
-use locap_synth::synthesize::{LabFrame, SynthConfig, Variation, synthesize};
+use locap_synth::synthesize::{LabFrame, SynthConfig, Variation, mirror_motion, synthesize};
 use rand::SeedableRng;
 use serde::Serialize;
 use std::fmt::Write as _;
@@ -68,8 +68,24 @@ pub struct Args {
     #[arg(long, default_value_t = 1, help_heading = "Synthesis")]
     seed: u64,
     /// No subject variation (markers exactly at the layout's offsets).
-    #[arg(long, help_heading = "Synthesis")]
+    #[arg(long, help_heading = "Synthesis", conflicts_with_all = ["bone_scale", "bone_scale_sd", "offset_jitter_mm", "bone_tilt_deg"])]
     no_variation: bool,
+    /// Range of the global bone-length scale of the random subjects (default 0.92 1.08).
+    #[arg(long, num_args = 2, value_names = ["MIN", "MAX"], value_parser = crate::values::positive, help_heading = "Synthesis")]
+    bone_scale: Option<Vec<f64>>,
+    /// Standard deviation of the extra per-bone length scale (default 0.02).
+    #[arg(long, value_name = "SD", value_parser = crate::values::non_negative, help_heading = "Synthesis")]
+    bone_scale_sd: Option<f64>,
+    /// Standard deviation of the per-take marker placement jitter, mm per axis (default 4).
+    #[arg(long, value_name = "MM", value_parser = crate::values::length_mm, help_heading = "Synthesis")]
+    offset_jitter_mm: Option<f64>,
+    /// Standard deviation of the per-bone tilt of the rest offsets, degrees per axis (default 0).
+    #[arg(long, value_name = "DEG", value_parser = crate::values::non_negative, help_heading = "Synthesis")]
+    bone_tilt_deg: Option<f64>,
+    /// Mirror every motion left to right (across the motion frame's x = 0 plane, the lateral
+    /// axis of CMU's ASF and BVH skeletons; left and right joints exchanged) before synthesis.
+    #[arg(long, help_heading = "Synthesis")]
+    mirror: bool,
     /// How the motion frame maps to the lab frame of the C3D output.
     #[arg(long, value_enum, default_value_t = Lab::ZUpFromYUp, help_heading = "Synthesis")]
     lab: Lab,
@@ -162,6 +178,21 @@ pub(crate) fn read_model(sources: &[PathBuf], max_gap: usize) -> Result<GapModel
     Ok(model)
 }
 
+/// The subject variation the flags ask for: the defaults with each given range replaced.
+fn variation(args: &Args) -> Variation {
+    if args.no_variation {
+        return Variation::none();
+    }
+    let d = Variation::default();
+    Variation {
+        bone_scale_range: args.bone_scale.as_deref().map_or(d.bone_scale_range, |r| [r[0], r[1]]),
+        bone_scale_sd: args.bone_scale_sd.unwrap_or(d.bone_scale_sd),
+        offset_jitter_mm: args.offset_jitter_mm.unwrap_or(d.offset_jitter_mm),
+        bone_tilt_sd_deg: args.bone_tilt_deg.unwrap_or(d.bone_tilt_sd_deg),
+        ..d
+    }
+}
+
 /// Runs `locap synth`.
 pub fn run(args: Args) -> Result<ExitCode> {
     let files = inputs::expand(&args.motions, &["bvh", "amc"])?;
@@ -173,11 +204,9 @@ pub fn run(args: Args) -> Result<ExitCode> {
     };
     let model = if args.augment.is_empty() { None } else { Some(read_model(&args.augment, args.max_gap)?) };
     let lab: LabFrame = args.lab.into();
-    let synth_config = SynthConfig {
-        variation: if args.no_variation { Variation::none() } else { Variation::default() },
-        rate_hz: args.rate,
-        lab,
-    };
+    let synth_config = SynthConfig { variation: variation(&args), rate_hz: args.rate, lab };
+    // Bad ranges are usage errors, before any take is read.
+    synth_config.validate().map_err(|e| inputs::usage(e.to_string()))?;
     let augment_config = AugmentConfig {
         mode: match args.mode {
             Mode::Eq6 => OcclusionMode::Eq6,
@@ -203,7 +232,10 @@ pub fn run(args: Args) -> Result<ExitCode> {
         // One independent stream per take, so results do not depend on scheduling.
         let seed = args.seed ^ (i as u64 + 1).wrapping_mul(0x9E37_79B9_7F4A_7C15);
         let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
-        let motion = read_motion(path, &options)?;
+        let mut motion = read_motion(path, &options)?;
+        if args.mirror {
+            motion = mirror_motion(&motion, 0)?;
+        }
         let synth = synthesize(&motion, &layout, &synth_config, &mut rng)?;
         let mut summary =
             TakeSummary { frames: synth.take.frame_count(), markers: synth.take.marker_count(), ..Default::default() };

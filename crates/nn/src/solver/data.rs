@@ -71,7 +71,8 @@ pub use locap_clean::Cleaned;
 
 /// LocalMoCap section 3.1 before solving, as `locap clean` does it with its defaults
 /// (`locap_clean::clean` with `CleanConfig::default()`): swapped labels exchanged back,
-/// outliers detected and removed, gaps filled by EDM (K = 6) or the `refiner`, outlier windows
+/// outliers detected and removed, gaps filled by the default fill (`auto`: per gap the method
+/// that filled trial gaps of its length best) or the `refiner`, outlier windows
 /// refilled by spline.
 ///
 /// # Errors

@@ -3,7 +3,7 @@
 //! warm-up and cosine learning rate, validation on held-out frames, checkpoints and resume).
 //!
 //! * Data: every shard's corrupted markers are cleaned once as `locap solve` cleans a real take
-//!   (outliers, EDM fill; [`super::data::clean_for_solving`]) and put in the waist frame; each
+//!   (outliers, the default `auto` fill; [`super::data::clean_for_solving`]) and put in the waist frame; each
 //!   frame is an example (the solver is per frame). The last `validation_fraction` of every take
 //!   is held out.
 //! * Loss (Eq. 5): `λ_M |Y - Ŷ| + λ_S |S - Ŝ| + λ_FK |FK(Y, S) - FK(Ŷ, Ŝ)|`: mean absolute
