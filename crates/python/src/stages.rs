@@ -204,8 +204,10 @@ pub fn label(
         .with_context(|| inner.name())
         .map_err(|e| failure(inner.path.as_deref(), &e))?;
     let mut out = inner.derived(labeled.take.clone());
-    // What `locap label` records, with the same edge tolerance.
-    let confidence = labeled.labels.confidence(&labeled.frames, &built, LABEL_EDGE_TOLERANCE_MM);
+    // What `locap label` records, with the same edge tolerance; another subject's labels are
+    // checked against the template calibrated on the take, as there.
+    let own = labeled.subject_template(&built);
+    let confidence = labeled.labels.confidence(&labeled.frames, own, LABEL_EDGE_TOLERANCE_MM);
     let (lines, uncertain) = confidence
         .parameters(&built, labeled.take.first_frame)
         .context("LOCAP:LABEL_UNCERTAIN")

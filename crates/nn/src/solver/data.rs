@@ -85,6 +85,16 @@ pub fn clean_for_solving(take: &Take, refiner: Option<&Refiner>) -> Result<Clean
     }
 }
 
+/// The cleaning of training inputs: [`clean_for_solving`]'s stages with the EDM fill (K = 6),
+/// as the shipped solver was trained. The per-gap `auto` fill of `locap solve` costs about a
+/// hundred times EDM's on synthetic takes (every gap tried on windows and neighbours), which
+/// would make data preparation outlast a training run on a CPU. So the network learns from
+/// EDM's fills and is given the default fill's when solving (`locap eval` scores it so).
+pub fn clean_for_training(take: &Take) -> Cleaned {
+    let fill = locap_clean::FillConfig { method: locap_clean::FillMethod::Edm, ..Default::default() };
+    locap_clean::clean(take, &CleanConfig { fill, ..CleanConfig::default() })
+}
+
 /// A cleaned take's model markers in the waist frame, with visibility (model order).
 #[derive(Debug, Clone)]
 pub struct LocalInput {

@@ -3,7 +3,8 @@
 //! warm-up and cosine learning rate, validation on held-out frames, checkpoints and resume).
 //!
 //! * Data: every shard's corrupted markers are cleaned once as `locap solve` cleans a real take
-//!   (outliers, the default `auto` fill; [`super::data::clean_for_solving`]) and put in the waist frame; each
+//!   (outliers, then the EDM fill the shipped model was trained with; [`super::data::clean_for_training`])
+//!   and put in the waist frame; each
 //!   frame is an example (the solver is per frame). The last `validation_fraction` of every take
 //!   is held out.
 //! * Loss (Eq. 5): `λ_M |Y - Ŷ| + λ_S |S - Ŝ| + λ_FK |FK(Y, S) - FK(Ŷ, Ŝ)|`: mean absolute
@@ -13,7 +14,7 @@
 //!   `λ_FK = 0.02 / mm` (a rotation-entry error of 0.1, about 6°, costs as much as 5 mm of joint
 //!   position).
 
-use super::data::{LocalInput, SolverShard, clean_for_solving, frame_truth, marker_joint_distances};
+use super::data::{LocalInput, SolverShard, clean_for_training, frame_truth, marker_joint_distances};
 use super::file::{OutputStats, OutputTensors, Solver, SolverMeta};
 use super::net::{
     Gathers, MARKER_JOINT_THRESHOLD_MM, MAX_MARKERS_PER_JOINT, MIN_MARKERS_PER_JOINT, NetConfig, SolverArchitecture,
@@ -331,7 +332,7 @@ fn prepare(data: &SolverData, config: &SolverTrainConfig) -> Result<(SolverMeta,
         .shards
         .par_iter()
         .map(|s| -> Result<_, NnError> {
-            let cleaned = clean_for_solving(&s.observed, None)?;
+            let cleaned = clean_for_training(&s.observed);
             let input = LocalInput::new(&cleaned, &data.markers, &config.frame)
                 .map_err(|e| NnError::InTake { name: s.name.clone(), source: Box::new(e) })?;
             Ok(input)
