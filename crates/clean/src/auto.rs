@@ -477,11 +477,8 @@ impl Context<'_> {
     /// throughout `gap` and its borders: they are hidden at the gap's own frames as trials.
     fn neighbour_trials(&self, marker: usize, gap: Gap, edge: Edge) -> Vec<usize> {
         let frames = self.take.frame_count();
-        let span = match edge {
-            Edge::Inside => gap.start.saturating_sub(1)..(gap.end() + 1).min(frames),
-            Edge::Start => gap.start..(gap.end() + 1).min(frames),
-            Edge::End => gap.start.saturating_sub(1)..gap.end(),
-        };
+        let span = captured_span(edge, gap.start, gap.len);
+        let span = span.start.min(frames)..span.end.min(frames);
         self.ranked[marker]
             .iter()
             .filter(|(_, v)| v.is_finite())
@@ -500,15 +497,7 @@ impl Context<'_> {
         if self.config.trials == 0 || len + 2 > frames {
             return Vec::new();
         }
-        // Frames that must be captured around a window starting at `s`: the window and its
-        // borders (one border at the take's edges, as in the real gap).
-        let span = |s: usize| -> Range<usize> {
-            match edge {
-                Edge::Inside => s.saturating_sub(1)..s + len + 1,
-                Edge::Start => s..s + len + 1,
-                Edge::End => s.saturating_sub(1)..s + len,
-            }
-        };
+        let span = |s: usize| captured_span(edge, s, len);
         let real = span(gap.start);
         let real = real.start.min(frames)..real.end.min(frames);
         let checked: Vec<usize> = self.ranked[marker]
@@ -625,6 +614,17 @@ impl Context<'_> {
         }
         let sub = Take::from_samples(names, &samples, take.frame_rate_hz()).ok()?;
         Some(Window { take: sub, frames })
+    }
+}
+
+/// Frames that must be captured around a window of `len` frames from `start` for it to stand
+/// in for a gap: the window and its borders (one border at the take's edges, as the real gap
+/// has), not clipped to the take.
+fn captured_span(edge: Edge, start: usize, len: usize) -> Range<usize> {
+    match edge {
+        Edge::Inside => start.saturating_sub(1)..start + len + 1,
+        Edge::Start => start..start + len + 1,
+        Edge::End => start.saturating_sub(1)..start + len,
     }
 }
 
