@@ -342,17 +342,23 @@ fn estimate(
     let d = borders.squared_distances(source, chosen, t)?;
     let embedded = classical_mds(&d)?;
     let observed: Vec<Vec3> = chosen.iter().map(|j| source.position_mm(t, *j)).collect::<Option<_>>()?;
-    let candidates = [false, true].into_iter().filter_map(|mirror| {
-        let points: Vec<Vec3> = embedded.iter().map(|p| if mirror { Vec3::new(p.x, p.y, -p.z) } else { *p }).collect();
-        let weights: Vec<f64> = chosen.iter().map(|j| weight_of[*j]).collect();
-        let transform = procrustes::align_weighted(&points[1..], &observed, &weights)?;
-        let fit = procrustes::rms_error(&transform, &points[1..], &observed);
-        let position = transform.apply(&points[0]);
+    let weights: Vec<f64> = chosen.iter().map(|j| weight_of[*j]).collect();
+    let transforms = procrustes::align_weighted_and_mirrored(&embedded[1..], &observed, &weights)?;
+    let mirror = |p: &Vec3, mirrored: bool| if mirrored { Vec3::new(p.x, p.y, -p.z) } else { *p };
+    let candidates = transforms.iter().zip([false, true]).map(|(transform, mirrored)| {
+        let position = transform.apply(&mirror(&embedded[0], mirrored));
         let score = match hint {
             Some(h) => (position - h).norm(),
-            None => fit,
+            None => {
+                let squared: f64 = embedded[1..]
+                    .iter()
+                    .zip(&observed)
+                    .map(|(p, o)| (transform.apply(&mirror(p, mirrored)) - o).norm_squared())
+                    .sum();
+                (squared / observed.len() as f64).sqrt()
+            }
         };
-        Some((score, position))
+        (score, position)
     });
     candidates.min_by(|a, b| a.0.total_cmp(&b.0)).map(|c| c.1)
 }
@@ -367,8 +373,11 @@ pub fn classical_mds(d: &DMatrix<f64>) -> Option<Vec<Vec3>> {
     if n == 0 || d.ncols() != n || d.iter().any(|x| !x.is_finite()) {
         return None;
     }
-    let j = DMatrix::<f64>::identity(n, n) - DMatrix::from_element(n, n, 1.0 / n as f64);
-    let b = (&j * d * &j) * -0.5;
+    // Double centring, `B = -1/2 J D J` written out: subtract row and column means, add the
+    // grand mean (no dense products with `J`).
+    let means: Vec<f64> = (0..n).map(|r| d.row(r).sum() / n as f64).collect();
+    let grand = means.iter().sum::<f64>() / n as f64;
+    let b = DMatrix::from_fn(n, n, |r, c| -0.5 * (d[(r, c)] - means[r] - means[c] + grand));
     let eigen = SymmetricEigen::new(b);
     let mut order: Vec<usize> = (0..n).collect();
     order.sort_by(|a, c| eigen.eigenvalues[*c].total_cmp(&eigen.eigenvalues[*a]));

@@ -113,16 +113,19 @@ impl Take {
     }
 
     /// Number of frames `T`.
+    #[inline]
     pub fn frame_count(&self) -> usize {
         self.frames
     }
 
     /// Number of markers `M`.
+    #[inline]
     pub fn marker_count(&self) -> usize {
         self.markers.len()
     }
 
     /// The marker names, in storage order.
+    #[inline]
     pub fn markers(&self) -> &[MarkerName] {
         &self.markers
     }
@@ -168,12 +171,14 @@ impl Take {
     ///
     /// # Panics
     /// If `frame` or `marker` is out of range (a programming error, not bad data).
+    #[inline]
     pub fn position_mm(&self, frame: usize, marker: usize) -> Option<Vec3> {
         let i = self.index(frame, marker);
         self.valid[i].then(|| self.positions_mm[i])
     }
 
     /// True if and only if `marker` is present at `frame`.
+    #[inline]
     pub fn is_valid(&self, frame: usize, marker: usize) -> bool {
         self.valid[self.index(frame, marker)]
     }
@@ -248,6 +253,7 @@ impl Take {
         }
     }
 
+    #[inline]
     fn index(&self, frame: usize, marker: usize) -> usize {
         let m = self.markers.len();
         assert!(marker < m && frame < self.frame_count(), "sample ({frame}, {marker}) outside take");

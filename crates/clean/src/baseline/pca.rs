@@ -68,6 +68,7 @@ use nalgebra::{DMatrix, SymmetricEigen};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::ops::Range;
+use std::sync::OnceLock;
 
 /// Most frames the marker-to-marker mean distances are averaged over.
 pub const DISTANCE_FRAMES: usize = 10_000;
@@ -80,6 +81,8 @@ pub const MIN_COMPLETE_FRAMES: usize = 10;
 pub const MIN_PREDICTORS: usize = 3;
 /// Frames per block when accumulating a covariance matrix.
 const BLOCK: usize = 2048;
+/// Most coordinates of complete frames kept in memory between the passes over them (32 MB).
+const ROW_CACHE: usize = 1 << 22;
 
 /// Parameters of the PCA fill; the defaults are the authors'.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -115,8 +118,7 @@ pub fn fill(take: &Take, config: &PcaConfig) -> Filled {
     if !(0..markers).any(|k| seen[k] && gapped[k]) {
         return out;
     }
-    let prefill = linear::fill(take).take;
-    let context = Context { take, prefill: &prefill, gapped: &gapped, config, only: 0..frames };
+    let context = Context { take, prefill: OnceLock::new(), gapped: &gapped, config, only: 0..frames };
     for i in (0..markers).filter(|k| seen[*k] && gapped[*k]) {
         let distances = mean_distances(take, i);
         fill_marker_into(&context, &distances, i, &mut out);
@@ -137,8 +139,7 @@ pub fn fill_marker(take: &Take, marker: usize, only: Range<usize>, config: &PcaC
     if !gapped[marker] {
         return out;
     }
-    let prefill = linear::fill(take).take;
-    let context = Context { take, prefill: &prefill, gapped: &gapped, config, only };
+    let context = Context { take, prefill: OnceLock::new(), gapped: &gapped, config, only };
     fill_marker_into(&context, &mean_distances(take, marker), marker, &mut out);
     out
 }
@@ -146,11 +147,18 @@ pub fn fill_marker(take: &Take, marker: usize, only: Range<usize>, config: &PcaC
 /// What every marker's reconstruction shares.
 struct Context<'a> {
     take: &'a Take,
-    prefill: &'a Take,
+    /// The linear pre-fill, made the first time a fallback needs it (most fills never do).
+    prefill: OnceLock<Take>,
     gapped: &'a [bool],
     config: &'a PcaConfig,
     /// Frames to reconstruct (missing frames outside stay missing).
     only: Range<usize>,
+}
+
+impl Context<'_> {
+    fn prefill(&self) -> &Take {
+        self.prefill.get_or_init(|| linear::fill(self.take).take)
+    }
 }
 
 /// Mean distance from marker `i` to every marker over the frames both are captured (sampled
@@ -200,7 +208,7 @@ fn fill_marker_into(cx: &Context, distances: &[Option<f64>], i: usize, out: &mut
         if predictors.is_empty() {
             // Nothing captured in these frames: the linear pre-fill is all there is.
             for f in missing {
-                if let Some(p) = cx.prefill.position_mm(f, i) {
+                if let Some(p) = cx.prefill().position_mm(f, i) {
                     put(out, f, i, p);
                 }
             }
@@ -229,7 +237,7 @@ fn project(
     let mut fit: Vec<usize> = (0..frames).filter(|f| kept.iter().all(|j| take.is_valid(*f, *j))).collect();
     if fit.len() < MIN_COMPLETE_FRAMES {
         // Fallback: predictors from the linear pre-fill, complete wherever `i` is captured.
-        source = cx.prefill;
+        source = cx.prefill();
         fit = (0..frames).filter(|f| take.is_valid(*f, i)).collect();
     }
     // Mean trajectory: centroid of the gap-free predictors (the paper's), else of all the
@@ -259,20 +267,33 @@ fn project(
             buf[3 * slot..3 * slot + 3].copy_from_slice(p.as_slice());
         }
     };
+    // The complete frames' rows are read three times (mean, deviation, covariance): kept once
+    // where they fit in memory, rebuilt each time otherwise.
+    let cache: Option<Vec<f64>> = (fit.len() * cols <= ROW_CACHE).then(|| {
+        let mut all = vec![0.0; fit.len() * cols];
+        for (f, slot) in fit.iter().zip(all.chunks_exact_mut(cols)) {
+            row(*f, slot);
+        }
+        all
+    });
+    let fit_row = |k: usize, buf: &mut [f64]| match &cache {
+        Some(all) => buf.copy_from_slice(&all[k * cols..(k + 1) * cols]),
+        None => row(fit[k], buf),
+    };
     // Mean and population standard deviation over the complete frames.
     let mut buf = vec![0.0; cols];
     let mut mean = vec![0.0; cols];
     let mut sq = vec![0.0; cols];
-    for f in &fit {
-        row(*f, &mut buf);
+    for k in 0..fit.len() {
+        fit_row(k, &mut buf);
         for c in 0..cols {
             mean[c] += buf[c];
         }
     }
     let n = fit.len() as f64;
     mean.iter_mut().for_each(|m| *m /= n);
-    for f in &fit {
-        row(*f, &mut buf);
+    for k in 0..fit.len() {
+        fit_row(k, &mut buf);
         for c in 0..cols {
             sq[c] += (buf[c] - mean[c]).powi(2);
         }
@@ -285,10 +306,11 @@ fn project(
         .collect();
     // Covariance of the normalised, weighted complete frames, accumulated block by block.
     let mut cov = DMatrix::<f64>::zeros(cols, cols);
-    for block in fit.chunks(BLOCK) {
+    for first in (0..fit.len()).step_by(BLOCK) {
+        let block = first..(first + BLOCK).min(fit.len());
         let mut a = DMatrix::<f64>::zeros(cols, block.len());
-        for (k, f) in block.iter().enumerate() {
-            row(*f, &mut buf);
+        for (k, at) in block.enumerate() {
+            fit_row(at, &mut buf);
             for c in 0..cols {
                 a[(c, k)] = (buf[c] - mean[c]) * scale[c];
             }
