@@ -170,6 +170,40 @@ pub fn splitmix(state: &mut u64) -> u64 {
     z ^ (z >> 31)
 }
 
+/// A long take for timing a fill: `source` played forward and backward in turn up to `frames`
+/// frames (so the motion stays continuous), with seeded gaps of 1 frame to 2 s on random
+/// markers until `missing` (a fraction) of its samples are hidden. Returns the take and the
+/// number of gaps drawn (overlapping ones included). What `locap clean` is timed on for the
+/// issue's "10-minute take with 2% missing" (`examples/long_take.rs` writes it as C3D).
+pub fn long_take(source: &Take, frames: usize, missing: f64, seed: u64) -> (Take, usize) {
+    let (n, m) = (source.frame_count(), source.marker_count());
+    let mut samples = Vec::with_capacity(frames * m);
+    for f in 0..frames {
+        let (lap, k) = (f / n.max(1), f % n.max(1));
+        let src = if lap % 2 == 0 { k } else { n - 1 - k };
+        samples.extend((0..m).map(|j| source.position_mm(src, j)));
+    }
+    let mut take = Take::from_samples(source.markers().to_vec(), &samples, source.frame_rate_hz())
+        .expect("samples of a valid take make a valid take");
+    let longest = ((2.0 * source.frame_rate_hz()).round() as usize).clamp(1, frames.saturating_sub(1).max(1));
+    let target = (frames as f64 * m as f64 * missing.clamp(0.0, 1.0)) as usize;
+    let mut state = seed;
+    let (mut hidden, mut gaps) = (0, 0);
+    while hidden < target && frames > longest {
+        let marker = (splitmix(&mut state) % m as u64) as usize;
+        let len = 1 + (splitmix(&mut state) % longest as u64) as usize;
+        let start = (splitmix(&mut state) % (frames - len) as u64) as usize;
+        for f in start..start + len {
+            if take.is_valid(f, marker) {
+                let _ = take.set_position_mm(f, marker, None);
+                hidden += 1;
+            }
+        }
+        gaps += 1;
+    }
+    (take, gaps)
+}
+
 /// Whether `marker` may be hidden over `start..start + len`: captured from one frame before to
 /// one frame after, and at least two frames from every gap of it already in `placed`.
 fn placeable(take: &Take, placed: &[HiddenGap], marker: usize, start: usize, len: usize) -> bool {

@@ -7,7 +7,7 @@
 
 use locap_clean::auto::AutoConfig;
 use locap_clean::{FillConfig, FillMethod, Filler, fill_gaps};
-use locap_core::{Take, Vec3};
+use locap_core::Take;
 use locap_eval::fill_bench::Candidate;
 use locap_eval::fill_lengths::{self, LengthsConfig};
 use std::time::Instant;
@@ -66,31 +66,9 @@ fn auto_is_no_worse_than_the_best_single_method_on_held_out_takes() {
 #[ignore = "timing; run with --ignored --nocapture"]
 fn ten_minutes_with_two_percent_missing() {
     let Some(hdm) = read("hdm05-c3d/HDM_bd_05-01_01_120.c3d") else { return };
-    let (n, m) = (hdm.frame_count(), hdm.marker_count());
-    let frames = 72_000;
-    let mut samples: Vec<Option<Vec3>> = Vec::with_capacity(frames * m);
-    for f in 0..frames {
-        let (lap, k) = (f / n, f % n);
-        let src = if lap % 2 == 0 { k } else { n - 1 - k };
-        samples.extend((0..m).map(|j| hdm.position_mm(src, j)));
-    }
-    let mut take = Take::from_samples(hdm.markers().to_vec(), &samples, 120.0).unwrap();
-    let mut state = 7u64;
-    let target = frames * m / 50;
-    let mut hidden = 0;
-    let mut gaps = 0;
-    while hidden < target {
-        let marker = (fill_lengths::splitmix(&mut state) % m as u64) as usize;
-        let len = 1 + (fill_lengths::splitmix(&mut state) % 240) as usize;
-        let start = (fill_lengths::splitmix(&mut state) % (frames - len) as u64) as usize;
-        for f in start..start + len {
-            if take.is_valid(f, marker) {
-                take.set_position_mm(f, marker, None).unwrap();
-                hidden += 1;
-            }
-        }
-        gaps += 1;
-    }
+    let (frames, m) = (72_000, hdm.marker_count());
+    let (take, gaps) = fill_lengths::long_take(&hdm, frames, 0.02, 7);
+    let hidden = frames * m - (0..frames).map(|f| (0..m).filter(|j| take.is_valid(f, *j)).count()).sum::<usize>();
     for method in [FillMethod::Edm, FillMethod::Auto] {
         let started = Instant::now();
         let out = fill_gaps(&take, &FillConfig { method, ..FillConfig::default() });
