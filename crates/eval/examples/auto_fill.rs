@@ -3,7 +3,7 @@
 //! [`AutoConfig`] settings overridden from the command line, against the single methods.
 //!
 //! ```text
-//! cargo run -p locap-eval --release --example auto_fill -- [--takes 85_02,85_12,135_02,hdm05]
+//! cargo run -p locap-eval --release --example auto_fill -- [--takes 85_02,85_12,135_02,hdm05,kneel,rolling]
 //!     [--seed 0] [--per-length 5] [--blend 2] [--trials 3] [--context 2] [--markers 10]
 //!     [--pca-markers 41] [--pca-context 30] [--pca-fit 500] [--interpolate 100] [--least-squares]
 //! ```
@@ -19,6 +19,8 @@ use locap_eval::fill_lengths::{self, LengthsConfig};
 fn path_of(name: &str) -> String {
     match name {
         "hdm05" => "hdm05-c3d/HDM_bd_05-01_01_120.c3d".to_string(),
+        "kneel" => "labeling/KneeltoProne01.c3d".to_string(),
+        "rolling" => "numediart-c3d/03_rolling.c3d".to_string(),
         other => format!("cmu-c3d/{other}.c3d"),
     }
 }

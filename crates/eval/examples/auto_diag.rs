@@ -1,0 +1,66 @@
+//! Per gap of the fixed-length protocol's single inputs ([`locap_eval::fill_lengths`]): what
+//! auto's trials measured for each candidate, what it chose, and each candidate's real error on
+//! that gap, so a wrong choice can be traced to its trials.
+//!
+//! ```text
+//! cargo run -p locap-eval --release --example auto_diag -- TAKE.c3d [--seed 0]
+//! ```
+
+use locap_clean::auto::{self, AutoConfig};
+use locap_clean::{FillConfig, FillMethod, fill_gaps};
+use locap_eval::fill_lengths::{self, LengthsConfig};
+
+fn main() -> anyhow::Result<()> {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let path = args.first().ok_or_else(|| anyhow::anyhow!("usage: auto_diag TAKE.c3d [--seed N]"))?;
+    let seed = args.iter().position(|a| a == "--seed").and_then(|k| args.get(k + 1)).map_or(Ok(0), |v| v.parse())?;
+    let truth = fill_lengths::labeled_only(&locap_io::c3d::read_path(std::path::Path::new(path))?.to_take()?);
+    let config = LengthsConfig { seed, ..LengthsConfig::default() };
+    let methods = [FillMethod::Edm, FillMethod::Pca, FillMethod::Rigid, FillMethod::Spline, FillMethod::Linear];
+    println!(
+        "| gap | marker | frames | chose | auto | {} | trials: {} |",
+        methods.map(|m| m.name()).join(" | "),
+        methods.map(|m| m.name()).join(" | ")
+    );
+    for gap in fill_lengths::length_gaps(&truth, &config) {
+        let holed = fill_lengths::holed(&truth, std::slice::from_ref(&gap));
+        let rmse = |take: &locap_core::Take| -> f64 {
+            let sq: f64 = gap
+                .frames
+                .clone()
+                .filter_map(|f| {
+                    Some((take.position_mm(f, gap.marker)? - truth.position_mm(f, gap.marker)?).norm_squared())
+                })
+                .sum();
+            (sq / gap.frames.len() as f64).sqrt()
+        };
+        let out = auto::fill(&holed, &AutoConfig::default());
+        let choice = out.choices.iter().find(|c| c.marker == gap.marker && c.frames.contains(&gap.frames.start));
+        let real: Vec<String> = methods
+            .iter()
+            .map(|m| {
+                format!("{:.1}", rmse(&fill_gaps(&holed, &FillConfig { method: *m, ..FillConfig::default() }).take))
+            })
+            .collect();
+        let trials: Vec<String> = methods
+            .iter()
+            .map(|m| {
+                choice
+                    .and_then(|c| c.trial_rmse_mm.iter().find(|(t, _)| t == m))
+                    .map_or("-".into(), |(_, e)| format!("{e:.1}"))
+            })
+            .collect();
+        println!(
+            "| {} | {} | {:?} | {} ({} trials) | {:.1} | {} | {} |",
+            gap.bucket,
+            truth.markers()[gap.marker],
+            gap.frames,
+            choice.map_or("-".into(), |c| c.method()),
+            choice.map_or(0, |c| c.trials),
+            rmse(&out.filled.take),
+            real.join(" | "),
+            trials.join(" | ")
+        );
+    }
+    Ok(())
+}
