@@ -1045,6 +1045,8 @@ pub fn solve_sequence(
     let mut scale = 1.0;
     let mut calibration_rms_mm = (f64::NAN, f64::NAN);
     let chosen = calibration_frames(frames, config.calibration_frames);
+    // The first pass's pose of the first frame (on the template): a second start for it below.
+    let mut first_pass_start: Option<(Vec<Quat>, Vec3)> = None;
     if !chosen.is_empty() && config.calibration_rounds > 0 {
         // Poses of the chosen frames from a pass over the take at a lower rate.
         let stride = ((frame_rate_hz / config.first_pass_hz).round() as usize).max(1);
@@ -1053,6 +1055,9 @@ pub fn solve_sequence(
         let mut next = 0;
         for f in (0..frames.len()).step_by(stride) {
             let pose = tracker.fit_pose(&frames[f], &vec![None; frames[f].len()]);
+            if f == 0 {
+                first_pass_start = Some(pose.clone());
+            }
             while next < chosen.len() && chosen[next] < f + stride {
                 poses.push(pose.clone());
                 next += 1;
@@ -1081,8 +1086,22 @@ pub fn solve_sequence(
     let mut tracker = PoseTracker::new(model.clone(), config.ik, frame_rate_hz);
     let mut poses = Vec::with_capacity(frames.len());
     let mut residual_rms_mm = Vec::with_capacity(frames.len());
-    for frame in frames {
-        let (local, root) = tracker.fit_pose(frame, &vec![None; frame.len()]);
+    for (f, frame) in frames.iter().enumerate() {
+        let (mut local, mut root) = tracker.fit_pose(frame, &vec![None; frame.len()]);
+        // The first frame also from the first pass's pose: from the rest pose, a limb the
+        // markers barely turn (a hand on one marker, its twist wide open) can land on the
+        // mirror solution and be tracked there for the whole take.
+        if let (0, Some((start, start_root))) = (f, &first_pass_start) {
+            let mut other =
+                PoseTracker::new(model.clone(), IkConfig { iterations: config.ik.first_iterations, ..config.ik }, 1.0);
+            other.start_from(start, *start_root);
+            let (l, r) = other.fit_pose(frame, &vec![None; frame.len()]);
+            let better = |a: Option<f64>, b: Option<f64>| matches!((a, b), (Some(a), Some(b)) if a < b - 1e-9);
+            if better(frame_rms(&model, &l, r, frame), frame_rms(&model, &local, root, frame)) {
+                tracker.start_from(&l, r);
+                (local, root) = (l, r);
+            }
+        }
         residual_rms_mm.push(frame_rms(&model, &local, root, frame));
         poses.push((local, root));
     }
