@@ -5,7 +5,7 @@
 //! jumps and the wrists' distances from their markers; with `--amc`, the comparison with that
 //! reference solution. Settings of `SequenceConfig` and `IkConfig` are read from environment
 //! variables (`CAL_FRAMES`, `CAL_ROUNDS`, `ITER`, `HUBER_MM`, `SMOOTH`, ...; see `config`), the CMU
-//! joints' degrees of freedom from `DOFS` (`asf`, `solved`, `asf-only`, `axes`, `free`; see `main`).
+//! joints' degrees of freedom from `DOFS` (`asf`, `asf-only`, `axes`, `free`; see `main`).
 
 use locap_eval::solver::{compare_motions, rotation_jumps, wrists_within};
 use locap_label::ik::solve_sequence;
@@ -85,12 +85,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             )?;
             KinematicSolver::from_layout(&layout)?
         }
-        // `DOFS`: the CMU joints' freedom: `asf` (default, the ASF's axes and limits), `axes`
-        // (the ASF's axes, no limits), `free` (three axes each, the solver before the ASF's).
+        // `DOFS`: the CMU joints' freedom: by default `cmu41()` (the ASF's axes within the
+        // ranges CMU's solutions use, wrist centres); `asf` (the ASF's own limits, wrist
+        // centres), `asf-only` (the same without wrist centres), `axes` (the ASF's axes, no
+        // limits), `free` (three axes each, the solver before the ASF's).
         None => match std::env::var("DOFS").as_deref() {
             Ok("free") => KinematicSolver::cmu41_with(|s| vec![locap_label::ik::JointDofs::Free; s.len()])?,
             Ok("axes") => KinematicSolver::cmu41_with(|s| cmu_asf_dofs(s, CmuLimits::None))?,
-            Ok("solved") => KinematicSolver::cmu41_with(|s| cmu_asf_dofs(s, CmuLimits::Solved))?
+            Ok("asf") => KinematicSolver::cmu41_with(|s| cmu_asf_dofs(s, CmuLimits::Asf))?
                 .with_joint_centres(locap_nn::kinematic::CMU_WRIST_CENTRES)?,
             Ok("asf-only") => KinematicSolver::cmu41_with(|s| cmu_asf_dofs(s, CmuLimits::Asf))?,
             _ => KinematicSolver::cmu41()?,

@@ -16,7 +16,8 @@
 //! skeleton, whose joints without degrees of freedom stay still). On the CMU skeleton each joint
 //! turns about the axes of its ASF bone (the Acclaim ASF's `axis`, `dof` and `limits` lines,
 //! see `locap_io::asf_amc`; [`CMU_ASF_DOFS`], the same in every CMU subject): an elbow or knee
-//! about one axis, a hand about two. The wrist joint centres are calibrated to lie between
+//! about one axis, a hand about two, within the ranges CMU's own solutions use
+//! ([`CMU_SOLVED_RANGES`]). The wrist joint centres are calibrated to lie between
 //! their two wrist markers ([`CMU_WRIST_CENTRES`]), as gait models define the wrist centre.
 //! It is Y-up; a Z-up take sees it
 //! turned into its lab by the convention of [`locap_core::units::y_up_to_z_up`], and the motion
@@ -293,7 +294,9 @@ impl KinematicSolver {
     }
 
     /// The CMU 41-marker set ([`Layout::cmu41`]) on the shipped network solver's CMU skeleton,
-    /// each joint with the CMU ASF's degrees of freedom and limits ([`cmu_asf_dofs`]) and the
+    /// each joint with the CMU ASF's degrees of freedom, within the ranges CMU's own solutions
+    /// use ([`cmu_asf_dofs`], [`CmuLimits::Solved`]: the ASF's `limits` keep a 135_02 forearm
+    /// from reaching its wrist markers; docs/benchmarks.md), and the
     /// wrists calibrated to lie between their markers ([`CMU_WRIST_CENTRES`]; set
     /// `config.joint_centre_weight` to 0 for the template's forearms); the
     /// joints that skeleton never rotates (no degrees of freedom in the ASF, and the clavicles,
@@ -305,7 +308,7 @@ impl KinematicSolver {
         // The template's wrist markers lie 45-75 mm from its hand joints (docs/benchmarks.md,
         // "Kinematic solver: ASF degrees of freedom"): the calibration fits the forearms so the
         // wrist centre lies between them.
-        KinematicSolver::cmu41_with(|skeleton| cmu_asf_dofs(skeleton, CmuLimits::Asf))?
+        KinematicSolver::cmu41_with(|skeleton| cmu_asf_dofs(skeleton, CmuLimits::Solved))?
             .with_joint_centres(CMU_WRIST_CENTRES)
     }
 

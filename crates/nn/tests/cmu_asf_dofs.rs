@@ -6,7 +6,9 @@ use locap_core::skeleton::forward_kinematics;
 use locap_core::{Quat, Vec3};
 use locap_io::asf_amc::{Dof, read_amc_path, read_asf_path};
 use locap_label::ik::JointDofs;
-use locap_nn::kinematic::{CMU_ASF_DOFS, CmuLimits, KinematicSolver, acclaim_axis_frame, cmu_asf_dofs};
+use locap_nn::kinematic::{
+    CMU_ASF_DOFS, CMU_SOLVED_RANGES, CmuLimits, KinematicSolver, acclaim_axis_frame, cmu_asf_dofs,
+};
 use locap_testkit::shared_data;
 use std::collections::HashMap;
 
@@ -122,6 +124,18 @@ fn amc_frames_posed_through_the_table_match_the_amc_readers_kinematics() {
         eprintln!("{amc}: two-axis joints, largest turn off their axes' plane (deg): {planes:?}");
         assert!(worst_mm < 1e-6, "{amc}: {worst_mm} mm");
         assert!(worst_rad < 1e-9, "{amc}: {worst_rad} rad");
+    }
+}
+
+#[test]
+fn the_solved_ranges_widen_the_asf_limits() {
+    assert_eq!(CMU_SOLVED_RANGES.len(), CMU_ASF_DOFS.len());
+    for (name, _, dofs) in CMU_ASF_DOFS {
+        let (_, ranges) = CMU_SOLVED_RANGES.iter().find(|(n, _)| n == name).unwrap_or_else(|| panic!("{name}"));
+        assert_eq!(ranges.len(), dofs.len(), "{name}");
+        for ((lo, hi), (_, min, max)) in ranges.iter().zip(dofs.iter()) {
+            assert!(lo <= min && hi >= max && *lo >= -180.0 && *hi <= 180.0, "{name}");
+        }
     }
 }
 
