@@ -103,12 +103,16 @@ fn a_cmu_take_solves_kinematically_close_to_cmus_own_solution() {
     let stdout = String::from_utf8(out.stdout).unwrap();
     assert!(stdout.contains("343 frames at 120 Hz"), "{stdout}");
     let residual = residual_mm(&stdout);
-    // Measured 3.4 mm RMS (docs/benchmarks.md, "Kinematic solver"; 28 mm before the
+    // Measured 5.0 mm RMS with the ASF's degrees of freedom and the wrist centres, 3.4 mm with
+    // every joint free in three axes (docs/benchmarks.md, "Kinematic solver"; 28 mm before the
     // calibration fitted the shin and thigh wands subject 02 wears elsewhere); a wrong lab
     // frame or marker order leaves the markers decimetres away.
     assert!(residual < 8.0, "residual {residual} mm");
-    // 15 frame pairs turned a joint over 20 degrees before.
-    assert_eq!(tracking(&stdout).0, 0, "{stdout}");
+    // 15 frame pairs turned a joint over 20 degrees before; the wrists were 58% within 60 mm
+    // of their markers before their centres were calibrated between them (100% measured).
+    let (over, wrists) = tracking(&stdout);
+    assert_eq!(over, 0, "{stdout}");
+    assert!(wrists.is_some_and(|w| w >= 99.0), "{stdout}");
     let solved = locap_io::bvh::read_bvh_path(&bvh, locap_core::LengthUnit::Centimetre).unwrap();
     // `solve` writes the animation tools' Y-up frame; CMU's AMC is in the skeleton's motion
     // frame (lab = y_up_to_z_up(motion)): undo both turns before comparing.
@@ -119,6 +123,12 @@ fn a_cmu_take_solves_kinematically_close_to_cmus_own_solution() {
     let reference = locap_io::asf_amc::read_amc_path(&data.join("cmu-asfamc/02/02_01.amc"), &asf, 120.0).unwrap();
     let rotating = vec![true; solved.skeleton.len()];
     let c = locap_eval::solver::compare_motions(&solved, &reference, &rotating).unwrap();
-    eprintln!("02_01 kinematic vs CMU AMC: JPE {:.1} mm, root-aligned {:.1} mm", c.jpe_mm, c.jpe_root_aligned_mm);
+    eprintln!(
+        "02_01 kinematic vs CMU AMC: JPE {:.1} mm, root-aligned {:.1} mm, JOE {:.2} deg",
+        c.jpe_mm, c.jpe_root_aligned_mm, c.joe_deg
+    );
     assert!(c.jpe_mm < 40.0, "{c:?}");
+    // 41 degrees with every joint free in three axes, 15.3 with the ASF's axes: an arm that
+    // twists about bones the markers hardly see fits them as well.
+    assert!(c.joe_deg < 25.0, "{c:?}");
 }

@@ -4,11 +4,12 @@
 //! residual per frame (median, 90th percentile, worst), per marker and per body, the rotation
 //! jumps and the wrists' distances from their markers; with `--amc`, the comparison with that
 //! reference solution. Settings of `SequenceConfig` and `IkConfig` are read from environment
-//! variables (`CAL_FRAMES`, `CAL_ROUNDS`, `ITER`, `HUBER_MM`, `SMOOTH`, ...; see `config`).
+//! variables (`CAL_FRAMES`, `CAL_ROUNDS`, `ITER`, `HUBER_MM`, `SMOOTH`, ...; see `config`), the CMU
+//! joints' degrees of freedom from `DOFS` (`asf`, `asf-only`, `axes`, `free`; see `main`).
 
 use locap_eval::solver::{compare_motions, rotation_jumps, wrists_within};
 use locap_label::ik::solve_sequence;
-use locap_nn::kinematic::KinematicSolver;
+use locap_nn::kinematic::{CmuLimits, KinematicSolver, cmu_asf_dofs};
 use locap_synth::opensim::{XmlSource, layout_from_opensim};
 use std::path::Path;
 
@@ -41,6 +42,9 @@ fn config(solver: &mut KinematicSolver) {
     }
     if let Some(v) = env("REST") {
         c.ik.rest = v;
+    }
+    if let Some(v) = env("CENTRE_W") {
+        c.joint_centre_weight = v;
     }
     if let Some(v) = env("LOCKED") {
         c.ik.locked = v;
@@ -81,7 +85,18 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             )?;
             KinematicSolver::from_layout(&layout)?
         }
-        None => KinematicSolver::cmu41()?,
+        // `DOFS`: the CMU joints' freedom: by default `cmu41()` (the ASF's axes within the
+        // ranges CMU's solutions use, wrist centres); `asf` (the ASF's own limits, wrist
+        // centres), `asf-only` (the same without wrist centres), `axes` (the ASF's axes, no
+        // limits), `free` (three axes each, the solver before the ASF's).
+        None => match std::env::var("DOFS").as_deref() {
+            Ok("free") => KinematicSolver::cmu41_with(|s| vec![locap_label::ik::JointDofs::Free; s.len()])?,
+            Ok("axes") => KinematicSolver::cmu41_with(|s| cmu_asf_dofs(s, CmuLimits::None))?,
+            Ok("asf") => KinematicSolver::cmu41_with(|s| cmu_asf_dofs(s, CmuLimits::Asf))?
+                .with_joint_centres(locap_nn::kinematic::CMU_WRIST_CENTRES)?,
+            Ok("asf-only") => KinematicSolver::cmu41_with(|s| cmu_asf_dofs(s, CmuLimits::Asf))?,
+            _ => KinematicSolver::cmu41()?,
+        },
     };
     config(&mut solver);
     let cleaned =
@@ -157,6 +172,24 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let motion = locap_core::Motion::new(skeleton, rotations, roots, take.frame_rate_hz())?;
     let rotating = solver.rotating();
     let (max, joint, over) = rotation_jumps(&motion, &rotating, 20.0);
+    // Each frame pair over 20 degrees: the joint, the frame, the marker residual around it.
+    for (f, seen) in frames.iter().enumerate().take(motion.frame_count()).skip(1) {
+        let (a, b) = (motion.local_rotations(f - 1), motion.local_rotations(f));
+        for (k, (qa, qb)) in a.iter().zip(b).enumerate() {
+            let turn = qa.angle_to(qb).to_degrees();
+            if rotating[k] && turn > 20.0 {
+                let r = |f: usize| fit.residual_rms_mm[f].map_or("-".into(), |r| format!("{r:.1}"));
+                println!(
+                    "jump: frames {}-{f}, {} {turn:.1} deg, residual {} -> {} mm, markers seen {}",
+                    f - 1,
+                    motion.skeleton.joints()[k].name,
+                    r(f - 1),
+                    r(f),
+                    seen.iter().flatten().count()
+                );
+            }
+        }
+    }
     let wrists = wrists_within(&motion, &take, 60.0);
     println!(
         "largest rotation jump {max:.1} deg ({joint}), {over} frame pairs > 20 deg; wrists within 60 mm: {}",
@@ -189,6 +222,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let asf = locap_io::asf_amc::read_asf_path(Path::new(asf))?;
         let reference = locap_io::asf_amc::read_amc_path(Path::new(amc), &asf, take.frame_rate_hz())?;
         let c = compare_motions(&motion, &reference, &rotating)?;
+        // The same wrist check on the reference: where CMU's own skeleton puts the hand joint.
+        let (rmax, rjoint, rover) = rotation_jumps(&reference, &vec![true; reference.skeleton.len()], 20.0);
+        println!(
+            "reference: largest rotation jump {rmax:.1} deg ({rjoint}), {rover} frame pairs > 20 deg; wrists within 60 mm: {}",
+            wrists_within(&reference, &take, 60.0)
+                .map_or("-".into(), |(share, worst)| format!("{:.1}% (worst {worst:.0} mm)", 100.0 * share))
+        );
         println!(
             "against the reference: JPE {:.1} mm (roots aligned {:.1}), JOE {:.2} deg",
             c.jpe_mm, c.jpe_root_aligned_mm, c.joe_deg

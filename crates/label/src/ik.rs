@@ -35,7 +35,9 @@
 //! smoothness and limit terms. A calibration sample counts as a stray only when it lies far
 //! from where the marker's median displacement in its body puts it: a marker the subject wears
 //! a few centimetres from the template's place is off by the same amount in every frame, and is
-//! recalibrated rather than left out.
+//! recalibrated rather than left out. A model may name joints that lie at the mean of markers
+//! worn around them ([`JointCentre`], a wrist between its two wrist markers): the calibration
+//! then fits the bone lengths the markers on the bone leave free to put the joint there.
 
 use crate::LabelError;
 use argmin::core::{CostFunction, Error, Executor, Gradient, State};
@@ -71,6 +73,19 @@ pub struct MarkerModel {
     /// The root's rotation is `root_base * exp(v_root)`: a tracker re-bases it so the rotation
     /// vector stays far from a full turn, where the exponential map folds.
     root_base: Quat,
+    /// Joints that lie at the mean of some markers ([`MarkerModel::with_joint_centres`]).
+    centres: Vec<JointCentre>,
+}
+
+/// A joint whose centre lies at the mean of markers worn around it (a wrist between its radial
+/// and ulnar markers, as gait models define the wrist centre): the subject calibration fits
+/// bone lengths so that it does ([`SequenceConfig::joint_centre_weight`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct JointCentre {
+    /// The joint.
+    pub joint: usize,
+    /// The markers (model order) around it.
+    pub markers: Vec<usize>,
 }
 
 /// The rotational freedom of one joint.
@@ -80,6 +95,25 @@ pub enum JointDofs {
     Free,
     /// Rotation about these axes only, each within its range; an empty list: no rotation.
     Axes(Vec<DofAxis>),
+}
+
+impl JointDofs {
+    /// The rotation of `angles_rad` about the axes, one angle per axis, applied in the listed
+    /// order (the first axis first to a vector: `exp(a_n t_n) ... exp(a_1 t_1)`), as an ASF's
+    /// `dof rx rz` values turn a bone; `None` for [`JointDofs::Free`] or another angle count.
+    /// Ranges are not applied. The pose fit parametrises a joint by one rotation vector in the
+    /// axes' span instead: the same rotations for one axis and for three (there the ranges bound
+    /// the vector's components, not these angles); for two, the rotations whose axis lies in
+    /// the plane of the two, which differ from these by a turn about the third direction of
+    /// second order in the angles.
+    pub fn rotation(&self, angles_rad: &[f64]) -> Option<Quat> {
+        let JointDofs::Axes(axes) = self else { return None };
+        if axes.len() != angles_rad.len() {
+            return None;
+        }
+        let turn = |q: Quat, (a, t): (&DofAxis, &f64)| Quat::from_scaled_axis(a.axis.normalize() * *t) * q;
+        Some(axes.iter().zip(angles_rad).fold(Quat::identity(), turn))
+    }
 }
 
 /// One rotation axis of a joint (joint frame, unit length) and its range.
@@ -138,7 +172,33 @@ impl MarkerModel {
         }
         let moving = (0..skeleton.len()).filter(|&j| !skeleton.joints()[j].is_end_site).collect();
         let dofs = vec![JointDofs::Free; skeleton.len()];
-        Ok(MarkerModel { skeleton, attachments, moving, lab: Quat::identity(), dofs, root_base: Quat::identity() })
+        Ok(MarkerModel {
+            skeleton,
+            attachments,
+            moving,
+            lab: Quat::identity(),
+            dofs,
+            root_base: Quat::identity(),
+            centres: Vec::new(),
+        })
+    }
+
+    /// The same model with joints that lie at the mean of markers around them (see
+    /// [`JointCentre`]).
+    ///
+    /// # Errors
+    /// A joint or marker index out of range, or a centre with no markers.
+    pub fn with_joint_centres(mut self, centres: Vec<JointCentre>) -> Result<MarkerModel, LabelError> {
+        for c in &centres {
+            if c.joint >= self.skeleton.len()
+                || c.markers.is_empty()
+                || c.markers.iter().any(|&m| m >= self.attachments.len() || self.attachments[m].is_none())
+            {
+                return Err(LabelError::Config(format!("a joint centre refers to what the model lacks: {c:?}")));
+            }
+        }
+        self.centres = centres;
+        Ok(self)
     }
 
     /// The same model with each joint's rotational freedom (one entry per skeleton joint; the
@@ -871,6 +931,9 @@ pub struct SequenceConfig {
     pub calibration_outlier_mm: f64,
     /// Frame rate (Hz) of the first, calibration-pose pass over the take (every k-th frame).
     pub first_pass_hz: f64,
+    /// Pull of a model's joint centres ([`MarkerModel::with_joint_centres`]) towards the mean
+    /// of their markers: residual per mm, per calibration frame (a marker's own is 1).
+    pub joint_centre_weight: f64,
 }
 
 impl Default for SequenceConfig {
@@ -885,6 +948,8 @@ impl Default for SequenceConfig {
             offset_prior: 0.05,
             calibration_outlier_mm: 60.0,
             first_pass_hz: 30.0,
+            // A bone 10% off its template length costs as much as a centre 20 mm off.
+            joint_centre_weight: 1.0,
         }
     }
 }
@@ -980,6 +1045,8 @@ pub fn solve_sequence(
     let mut scale = 1.0;
     let mut calibration_rms_mm = (f64::NAN, f64::NAN);
     let chosen = calibration_frames(frames, config.calibration_frames);
+    // The first pass's pose of the first frame (on the template): a second start for it below.
+    let mut first_pass_start: Option<(Vec<Quat>, Vec3)> = None;
     if !chosen.is_empty() && config.calibration_rounds > 0 {
         // Poses of the chosen frames from a pass over the take at a lower rate.
         let stride = ((frame_rate_hz / config.first_pass_hz).round() as usize).max(1);
@@ -988,6 +1055,9 @@ pub fn solve_sequence(
         let mut next = 0;
         for f in (0..frames.len()).step_by(stride) {
             let pose = tracker.fit_pose(&frames[f], &vec![None; frames[f].len()]);
+            if f == 0 {
+                first_pass_start = Some(pose.clone());
+            }
             while next < chosen.len() && chosen[next] < f + stride {
                 poses.push(pose.clone());
                 next += 1;
@@ -1016,8 +1086,22 @@ pub fn solve_sequence(
     let mut tracker = PoseTracker::new(model.clone(), config.ik, frame_rate_hz);
     let mut poses = Vec::with_capacity(frames.len());
     let mut residual_rms_mm = Vec::with_capacity(frames.len());
-    for frame in frames {
-        let (local, root) = tracker.fit_pose(frame, &vec![None; frame.len()]);
+    for (f, frame) in frames.iter().enumerate() {
+        let (mut local, mut root) = tracker.fit_pose(frame, &vec![None; frame.len()]);
+        // The first frame also from the first pass's pose: from the rest pose, a limb the
+        // markers barely turn (a hand on one marker, its twist wide open) can land on the
+        // mirror solution and be tracked there for the whole take.
+        if let (0, Some((start, start_root))) = (f, &first_pass_start) {
+            let mut other =
+                PoseTracker::new(model.clone(), IkConfig { iterations: config.ik.first_iterations, ..config.ik }, 1.0);
+            other.start_from(start, *start_root);
+            let (l, r) = other.fit_pose(frame, &vec![None; frame.len()]);
+            let better = |a: Option<f64>, b: Option<f64>| matches!((a, b), (Some(a), Some(b)) if a < b - 1e-9);
+            if better(frame_rms(&model, &l, r, frame), frame_rms(&model, &local, root, frame)) {
+                tracker.start_from(&l, r);
+                (local, root) = (l, r);
+            }
+        }
         residual_rms_mm.push(frame_rms(&model, &local, root, frame));
         poses.push((local, root));
     }
@@ -1139,6 +1223,7 @@ fn calibrate_linear(
     let sk = &model.skeleton;
     let joints = sk.len();
     let k = poses.len();
+    let k_frames = k;
     let unchanged: NewOffsets =
         model.attachments.iter().map(|a| a.as_ref().map(|a| (a.offset_mm, a.blend.map(|b| b.2)))).collect();
     // Unknowns: roots (3 per frame), then scales, then offsets (3 per attached marker).
@@ -1186,8 +1271,57 @@ fn calibrate_linear(
     let lab_inv = model.lab.inverse();
     let cutoff = config.calibration_outlier_mm;
     let shifts = if per_bone { offset_shifts(model, poses, frames) } else { vec![Vec3::zeros(); model.marker_count()] };
+    // Component `c` of joint `j`'s position in a frame posed as `pose`, linear in the unknowns:
+    // (column, coefficient) pairs, each times `w`, and the constant part (not times `w`). The
+    // root's column is frame `f`'s.
+    let chain_terms = |j: usize, pose: &(usize, locap_core::skeleton::GlobalPose), c: usize, w: f64| {
+        let (f, pose) = pose;
+        let mut coeffs: Vec<(usize, f64)> = vec![(3 * f + c, w)];
+        let mut constant = 0.0;
+        let mut joint = j;
+        while let Some(parent) = sk.joints()[joint].parent {
+            let x = (pose.rotations[parent] * sk.joints()[joint].offset_mm)[c];
+            match scaled[joint] {
+                Some(col) => coeffs.push((col, w * x)),
+                None => constant += x,
+            }
+            joint = parent;
+        }
+        (coeffs, constant)
+    };
+    // The same for marker `i` (its attachment, blend included).
+    let marker_terms = |i: usize, pose: &(usize, locap_core::skeleton::GlobalPose), c: usize| {
+        let Some(att) = &model.attachments[i] else { return (Vec::new(), 0.0) };
+        // Each part of the marker: (weight, joint, offset in its frame, offset unknown?).
+        let mut parts = vec![(1.0, att.joint, att.offset_mm, true)];
+        if let Some((j, w, off)) = att.blend {
+            parts[0].0 = 1.0 - w;
+            parts.push((w, j, off, false));
+        }
+        let mut coeffs: Vec<(usize, f64)> = vec![(3 * pose.0 + c, 1.0)];
+        let mut constant = 0.0;
+        for &(w, j, off, primary) in &parts {
+            // The chain of bones from the root to j (the root's column is counted once above).
+            let (chain, k) = chain_terms(j, pose, c, w);
+            coeffs.extend(chain.into_iter().skip(1));
+            constant += w * k;
+            let g = pose.1.rotations[j].to_rotation_matrix().into_inner();
+            match (primary, offset_of[i]) {
+                (true, Some(col)) => {
+                    for d in 0..3 {
+                        coeffs.push((col + d, w * g[(c, d)]));
+                    }
+                }
+                // The overall scale scales the offsets too.
+                _ if !per_bone => coeffs.push((3 * k_frames, w * (g * off)[c])),
+                _ => constant += w * (g * off)[c],
+            }
+        }
+        (coeffs, constant)
+    };
     for (f, ((local, root), frame)) in poses.iter().zip(frames).enumerate() {
-        let pose = forward_kinematics(sk, local, *root);
+        let posed = (f, forward_kinematics(sk, local, *root));
+        let pose = &posed.1;
         let current = model.markers_at(local, *root);
         for (i, att) in model.attachments.iter().enumerate() {
             let (Some(att), Some(o), Some(now)) = (att, frame[i], current[i]) else { continue };
@@ -1199,39 +1333,32 @@ fn calibrate_linear(
                 continue;
             }
             let target = lab_inv * o;
-            // Each part of the marker: (weight, joint, offset in its frame, offset unknown?).
-            let mut parts = vec![(1.0, att.joint, att.offset_mm, true)];
-            if let Some((j, w, off)) = att.blend {
-                parts[0].0 = 1.0 - w;
-                parts.push((w, j, off, false));
-            }
             for c in 0..3 {
-                let mut coeffs: Vec<(usize, f64)> = vec![(3 * f + c, 1.0)];
-                let mut rhs = target[c];
-                for &(w, j, off, primary) in &parts {
-                    // The chain of bones from the root to j.
-                    let mut joint = j;
-                    while let Some(parent) = sk.joints()[joint].parent {
-                        let x = w * (pose.rotations[parent] * sk.joints()[joint].offset_mm)[c];
-                        match scaled[joint] {
-                            Some(col) => coeffs.push((col, x)),
-                            None => rhs -= x,
-                        }
-                        joint = parent;
-                    }
-                    let g = pose.rotations[j].to_rotation_matrix().into_inner();
-                    match (primary, offset_of[i]) {
-                        (true, Some(col)) => {
-                            for d in 0..3 {
-                                coeffs.push((col + d, w * g[(c, d)]));
-                            }
-                        }
-                        // The overall scale scales the offsets too.
-                        _ if !per_bone => coeffs.push((3 * k, w * (g * off)[c])),
-                        _ => rhs -= w * (g * off)[c],
-                    }
+                let (coeffs, constant) = marker_terms(i, &posed, c);
+                add_row(&coeffs, target[c] - constant, &mut a, &mut b);
+            }
+        }
+        // Joint centres at the mean of their markers, where all of them are seen: fitted with
+        // the bone lengths (from the second round, which fits them).
+        if !per_bone || config.joint_centre_weight <= 0.0 {
+            continue;
+        }
+        for centre in &model.centres {
+            if centre.markers.iter().any(|&m| frame[m].is_none()) {
+                continue;
+            }
+            let share = 1.0 / centre.markers.len() as f64;
+            let w = config.joint_centre_weight;
+            for c in 0..3 {
+                // w (mean of the markers - the joint) = 0, the roots cancelling.
+                let (mut coeffs, mut constant) = chain_terms(centre.joint, &posed, c, -w);
+                constant *= -w;
+                for &m in &centre.markers {
+                    let (more, k) = marker_terms(m, &posed, c);
+                    coeffs.extend(more.into_iter().map(|(col, x)| (col, x * w * share)));
+                    constant += k * w * share;
                 }
-                add_row(&coeffs, rhs, &mut a, &mut b);
+                add_row(&coeffs, -constant, &mut a, &mut b);
             }
         }
     }
@@ -1529,6 +1656,56 @@ pub(crate) mod tests {
         }
         let marker = (sum / n).sqrt();
         assert!(marker < 5.0, "the moved marker stays {marker:.1} mm off");
+    }
+
+    #[test]
+    fn a_joint_centre_between_two_markers_sets_the_bone_length_the_markers_leave_free() {
+        // The subject's forearm is 300 mm (the template's 250, the rest 1.1 times the
+        // template's): nothing rides below the hand joint, so only its two wrist markers,
+        // around it, say where it is.
+        let mut model = hinged_arm();
+        let wrist = |o: [f64; 3]| Some(Attachment { joint: 2, offset_mm: Vec3::from(o), blend: None });
+        // The template's wrist markers 40 mm short of its hand joint.
+        model.attachments.extend([wrist([210.0, 30.0, 0.0]), wrist([210.0, -30.0, 0.0])]);
+        let (mut subject, _, truth) = subject_take(&model, 240);
+        let mut joints = subject.skeleton.joints().to_vec();
+        joints[3].offset_mm = Vec3::new(300.0, 0.0, 0.0);
+        subject.skeleton = Skeleton::new(joints).unwrap();
+        subject.attachments[9].as_mut().unwrap().offset_mm = Vec3::new(300.0, 30.0, 0.0);
+        subject.attachments[10].as_mut().unwrap().offset_mm = Vec3::new(300.0, -30.0, 0.0);
+        let frames: Frames = truth.iter().map(|theta| subject.markers_mm(theta)).collect();
+        let model = model.with_joint_centres(vec![JointCentre { joint: 3, markers: vec![9, 10] }]).unwrap();
+        // Hand joint from the wrist markers' mean, worst frame (mm).
+        let off = |config: &SequenceConfig| {
+            let fit = solve_sequence(model.clone(), &frames, 60.0, config).unwrap();
+            let mut worst: f64 = 0.0;
+            for (f, (local, root)) in fit.poses.iter().enumerate() {
+                let hand = fit.model.lab * forward_kinematics(&fit.model.skeleton, local, *root).positions_mm[3];
+                let mean = (frames[f][9].unwrap() + frames[f][10].unwrap()) / 2.0;
+                worst = worst.max((hand - mean).norm());
+            }
+            worst
+        };
+        let centred = off(&SequenceConfig::default());
+        let template = off(&SequenceConfig { joint_centre_weight: 0.0, ..Default::default() });
+        // The bone prior keeps part of the template's length: the centre pulls, not welds.
+        eprintln!("hand from its markers' mean: {centred:.1} mm, {template:.1} mm without the centre");
+        assert!(centred < 10.0 && template > 2.0 * centred, "{centred:.1} vs {template:.1} mm");
+        assert!(model.clone().with_joint_centres(vec![JointCentre { joint: 3, markers: vec![] }]).is_err());
+        assert!(model.with_joint_centres(vec![JointCentre { joint: 9, markers: vec![0] }]).is_err());
+    }
+
+    #[test]
+    fn dof_angles_turn_about_their_axes_in_order() {
+        let axis = |v: Vec3| DofAxis { axis: v, min_rad: -1.0, max_rad: 1.0 };
+        let two = JointDofs::Axes(vec![axis(Vec3::x()), axis(Vec3::z() * 2.0)]);
+        let q = two.rotation(&[0.3, -0.5]).unwrap();
+        // x first, then z (a vector turned about x, then about z), the axis length ignored.
+        let want = Quat::from_scaled_axis(Vec3::z() * -0.5) * Quat::from_scaled_axis(Vec3::x() * 0.3);
+        assert!(q.angle_to(&want) < 1e-12);
+        assert!(two.rotation(&[0.3]).is_none());
+        assert!(JointDofs::Free.rotation(&[0.0, 0.0, 0.0]).is_none());
+        assert_eq!(JointDofs::Axes(Vec::new()).rotation(&[]), Some(Quat::identity()));
     }
 
     #[test]

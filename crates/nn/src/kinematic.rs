@@ -13,19 +13,168 @@
 //! outliers): the IK needs no gap filling, and filled samples would only add the filler's error.
 //! The skeleton comes from the layout ([`locap_synth::layout::LayoutSkeleton`], e.g. built from
 //! an OpenSim model) or is given ([`KinematicSolver::cmu41`]: the shipped network's CMU
-//! skeleton, whose joints without degrees of freedom stay still). It is Y-up; a Z-up take sees it
+//! skeleton, whose joints without degrees of freedom stay still). On the CMU skeleton each joint
+//! turns about the axes of its ASF bone (the Acclaim ASF's `axis`, `dof` and `limits` lines,
+//! see `locap_io::asf_amc`; [`CMU_ASF_DOFS`], the same in every CMU subject): an elbow or knee
+//! about one axis, a hand about two, within the ranges CMU's own solutions use
+//! ([`CMU_SOLVED_RANGES`]). The wrist joint centres are calibrated to lie between
+//! their two wrist markers ([`CMU_WRIST_CENTRES`]), as gait models define the wrist centre.
+//! It is Y-up; a Z-up take sees it
 //! turned into its lab by the convention of [`locap_core::units::y_up_to_z_up`], and the motion
 //! comes back in the skeleton's Y-up frame, as the network solver's does.
 
 use crate::NnError;
 use locap_clean::{CleanConfig, Cleaned, Filler};
 use locap_core::{Motion, Skeleton, Take, UpAxis, Vec3};
-use locap_label::ik::{Attachment, DofAxis, JointDofs, MarkerModel, SequenceConfig, solve_sequence};
+use locap_label::ik::{Attachment, DofAxis, JointCentre, JointDofs, MarkerModel, SequenceConfig, solve_sequence};
 use locap_synth::Layout;
 
 /// Weight of the rotation directions a layout skeleton's degrees of freedom lock
 /// ([`locap_label::ik::IkConfig::locked`]) in [`KinematicSolver::from_layout`].
 pub const SOFT_LOCK: f64 = 0.01;
+
+/// One bone of the CMU skeleton's ASF (`:bonedata`): its name, the `axis` angles (degrees,
+/// `XYZ` order: X applied first) and its rotational `dof`s, each with the ASF's `limits`
+/// (degrees): `(axis 0 = rx, 1 = ry, 2 = rz, min, max)`.
+pub type CmuBoneDofs = (&'static str, [f64; 3], &'static [(usize, f64, f64)]);
+
+/// The CMU ASF's degrees of freedom, bone by bone: the same in every CMU subject's ASF (the
+/// `axis`, `dof` and `limits` lines of the shared subjects 01-03 agree to 1e-13 degrees; the
+/// bones' `direction` and `length` are the subject's own and come from the skeleton instead).
+/// Bones not listed (`lhipjoint`, `rhipjoint`) have no `dof` line: they never turn.
+pub const CMU_ASF_DOFS: &[CmuBoneDofs] = &[
+    ("lfemur", [0.0, 0.0, 20.0], &[(0, -160.0, 20.0), (1, -70.0, 70.0), (2, -60.0, 70.0)]),
+    ("ltibia", [0.0, 0.0, 20.0], &[(0, -10.0, 170.0)]),
+    ("lfoot", [-90.0, 0.0, 20.0], &[(0, -45.0, 90.0), (2, -70.0, 20.0)]),
+    ("ltoes", [-90.0, 0.0, 20.0], &[(0, -90.0, 20.0)]),
+    ("rfemur", [0.0, 0.0, -20.0], &[(0, -160.0, 20.0), (1, -70.0, 70.0), (2, -70.0, 60.0)]),
+    ("rtibia", [0.0, 0.0, -20.0], &[(0, -10.0, 170.0)]),
+    ("rfoot", [-90.0, 0.0, -20.0], &[(0, -45.0, 90.0), (2, -20.0, 70.0)]),
+    ("rtoes", [-90.0, 0.0, -20.0], &[(0, -90.0, 20.0)]),
+    ("lowerback", [0.0, 0.0, 0.0], &[(0, -20.0, 45.0), (1, -30.0, 30.0), (2, -30.0, 30.0)]),
+    ("upperback", [0.0, 0.0, 0.0], &[(0, -20.0, 45.0), (1, -30.0, 30.0), (2, -30.0, 30.0)]),
+    ("thorax", [0.0, 0.0, 0.0], &[(0, -20.0, 45.0), (1, -30.0, 30.0), (2, -30.0, 30.0)]),
+    ("lowerneck", [0.0, 0.0, 0.0], &[(0, -20.0, 45.0), (1, -30.0, 30.0), (2, -30.0, 30.0)]),
+    ("upperneck", [0.0, 0.0, 0.0], &[(0, -20.0, 45.0), (1, -30.0, 30.0), (2, -30.0, 30.0)]),
+    ("head", [0.0, 0.0, 0.0], &[(0, -20.0, 45.0), (1, -30.0, 30.0), (2, -30.0, 30.0)]),
+    ("lclavicle", [0.0, 0.0, 0.0], &[(1, -20.0, 10.0), (2, 0.0, 20.0)]),
+    ("lhumerus", [180.0, -30.0, -90.0], &[(0, -60.0, 90.0), (1, -90.0, 90.0), (2, -90.0, 90.0)]),
+    ("lradius", [180.0, -30.0, -90.0], &[(0, -10.0, 170.0)]),
+    ("lwrist", [0.0, 90.0, 90.0], &[(1, -180.0, 0.0)]),
+    ("lhand", [0.0, 90.0, 90.0], &[(0, -90.0, 90.0), (2, -45.0, 45.0)]),
+    ("lfingers", [0.0, 90.0, 90.0], &[(0, 0.0, 90.0)]),
+    ("lthumb", [-90.0, 45.0, 0.0], &[(0, -45.0, 45.0), (2, -45.0, 45.0)]),
+    ("rclavicle", [0.0, 0.0, 0.0], &[(1, -10.0, 20.0), (2, -20.0, 0.0)]),
+    ("rhumerus", [180.0, 30.0, 90.0], &[(0, -90.0, 60.0), (1, -90.0, 90.0), (2, -90.0, 90.0)]),
+    ("rradius", [180.0, 30.0, 90.0], &[(0, -10.0, 170.0)]),
+    ("rwrist", [0.0, -90.0, -90.0], &[(1, -180.0, 0.0)]),
+    ("rhand", [0.0, -90.0, -90.0], &[(0, -90.0, 90.0), (2, -45.0, 45.0)]),
+    ("rfingers", [0.0, -90.0, -90.0], &[(0, 0.0, 90.0)]),
+    ("rthumb", [-90.0, -45.0, 0.0], &[(0, -45.0, 45.0), (2, -45.0, 45.0)]),
+];
+
+/// The CMU skeleton's wrists (`lhand`, `rhand`: the joint the hand flexes about) and the wrist
+/// markers around each (thumb and little-finger side of the wrist bar), whose mean is the
+/// wrist centre as gait models define it ([`KinematicSolver::with_joint_centres`]).
+pub const CMU_WRIST_CENTRES: &[(&str, &[&str])] = &[("lhand", &["LWRA", "LWRB"]), ("rhand", &["RWRA", "RWRB"])];
+
+/// The ranges CMU's own solutions use (degrees, per bone, in [`CMU_ASF_DOFS`]'s dof order): the
+/// ASF's `limits` widened to the 0.1th and 99.9th percentile of the AMC values of training
+/// subjects 01 and 03 (every take; angles taken into a half turn either way), rounded out to 5
+/// degrees. CMU's solutions turn a wrist about the forearm up to 95 degrees past the ASF's
+/// range and bend feet, hands and thumbs beyond theirs; held-out subject 02 is not used.
+pub const CMU_SOLVED_RANGES: &[(&str, &[(f64, f64)])] = &[
+    ("lfemur", &[(-160.0, 25.0), (-70.0, 70.0), (-60.0, 70.0)]),
+    ("ltibia", &[(-10.0, 170.0)]),
+    ("lfoot", &[(-180.0, 180.0), (-180.0, 180.0)]),
+    ("ltoes", &[(-90.0, 65.0)]),
+    ("rfemur", &[(-160.0, 30.0), (-70.0, 70.0), (-70.0, 60.0)]),
+    ("rtibia", &[(-10.0, 170.0)]),
+    ("rfoot", &[(-50.0, 90.0), (-45.0, 70.0)]),
+    ("rtoes", &[(-90.0, 75.0)]),
+    ("lowerback", &[(-20.0, 80.0), (-30.0, 30.0), (-30.0, 30.0)]),
+    ("upperback", &[(-20.0, 45.0), (-30.0, 30.0), (-30.0, 30.0)]),
+    ("thorax", &[(-35.0, 45.0), (-30.0, 30.0), (-30.0, 30.0)]),
+    ("lowerneck", &[(-45.0, 45.0), (-30.0, 30.0), (-50.0, 40.0)]),
+    ("upperneck", &[(-45.0, 50.0), (-35.0, 35.0), (-30.0, 45.0)]),
+    ("head", &[(-20.0, 45.0), (-30.0, 30.0), (-30.0, 30.0)]),
+    ("lclavicle", &[(-20.0, 10.0), (-5.0, 20.0)]),
+    ("lhumerus", &[(-80.0, 130.0), (-90.0, 90.0), (-90.0, 105.0)]),
+    ("lradius", &[(-10.0, 170.0)]),
+    ("lwrist", &[(-180.0, 95.0)]),
+    ("lhand", &[(-90.0, 90.0), (-70.0, 45.0)]),
+    ("lfingers", &[(0.0, 90.0)]),
+    ("lthumb", &[(-45.0, 60.0), (-45.0, 70.0)]),
+    ("rclavicle", &[(-10.0, 20.0), (-20.0, 5.0)]),
+    ("rhumerus", &[(-90.0, 130.0), (-90.0, 90.0), (-165.0, 90.0)]),
+    ("rradius", &[(-10.0, 170.0)]),
+    ("rwrist", &[(-180.0, 180.0)]),
+    ("rhand", &[(-90.0, 90.0), (-130.0, 85.0)]),
+    ("rfingers", &[(0.0, 90.0)]),
+    ("rthumb", &[(-45.0, 75.0), (-125.0, 115.0)]),
+];
+
+/// Which ranges [`cmu_asf_dofs`] gives the CMU axes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum CmuLimits {
+    /// The ASF's `limits`. CMU's own solutions (the AMC files) leave them often (a wrist's
+    /// `ry` in about half of the frames), so they are not the ranges CMU solved with.
+    Asf,
+    /// The ranges CMU's own solutions use ([`CMU_SOLVED_RANGES`]).
+    Solved,
+    /// Every axis within a half turn either way: the ASF's axes, no range.
+    None,
+}
+
+/// The bone frame `C` of an ASF `axis a b c XYZ` line (degrees): `Rz(c) Ry(b) Rx(a)`, X
+/// applied first (the Acclaim convention, `locap_io::asf_amc`).
+pub fn acclaim_axis_frame(angles_deg: [f64; 3]) -> locap_core::Quat {
+    let mut q = locap_core::Quat::identity();
+    for (axis, angle) in angles_deg.iter().enumerate() {
+        q = locap_core::rotation::axis_rotation(axis, angle.to_radians()) * q;
+    }
+    q
+}
+
+/// Each joint's rotational freedom on a CMU skeleton (one built from a CMU ASF, as the shipped
+/// solver's: joint frames aligned with the world at rest, so an ASF bone's `L = C M C^-1` is
+/// its local rotation): a bone of [`CMU_ASF_DOFS`] turns about `C e_x`, `C e_y`, `C e_z` for
+/// its `rx`, `ry`, `rz`, in the ASF's order; the root turns freely; every other joint
+/// (hip joints, end sites, a name the table lacks) not at all.
+pub fn cmu_asf_dofs(skeleton: &Skeleton, limits: CmuLimits) -> Vec<JointDofs> {
+    skeleton
+        .joints()
+        .iter()
+        .enumerate()
+        .map(|(j, joint)| {
+            if j == 0 {
+                return JointDofs::Free;
+            }
+            let Some((_, axis, dofs)) = CMU_ASF_DOFS.iter().find(|(name, ..)| *name == joint.name) else {
+                return JointDofs::Axes(Vec::new());
+            };
+            let frame = acclaim_axis_frame(*axis);
+            let solved = CMU_SOLVED_RANGES.iter().find(|(name, _)| *name == joint.name).map(|(_, r)| *r);
+            JointDofs::Axes(
+                dofs.iter()
+                    .enumerate()
+                    .map(|(n, &(k, min_deg, max_deg))| {
+                        let (min_deg, max_deg) = match (limits, solved.and_then(|r| r.get(n))) {
+                            (CmuLimits::Solved, Some(range)) => *range,
+                            (CmuLimits::Asf | CmuLimits::Solved, _) => (min_deg, max_deg),
+                            (CmuLimits::None, _) => (-180.0, 180.0),
+                        };
+                        DofAxis {
+                            axis: frame * Vec3::ith(k, 1.0),
+                            min_rad: min_deg.to_radians(),
+                            max_rad: max_deg.to_radians(),
+                        }
+                    })
+                    .collect(),
+            )
+        })
+        .collect()
+}
 
 /// A kinematic solver: a layout's markers attached to a skeleton.
 #[derive(Debug, Clone)]
@@ -144,22 +293,79 @@ impl KinematicSolver {
         Ok(solver)
     }
 
-    /// The CMU 41-marker set ([`Layout::cmu41`]) on the shipped network solver's CMU skeleton;
-    /// the joints that skeleton never rotates (no degrees of freedom in the ASF) stay still.
+    /// The CMU 41-marker set ([`Layout::cmu41`]) on the shipped network solver's CMU skeleton,
+    /// each joint with the CMU ASF's degrees of freedom, within the ranges CMU's own solutions
+    /// use ([`cmu_asf_dofs`], [`CmuLimits::Solved`]: the ASF's `limits` keep a 135_02 forearm
+    /// from reaching its wrist markers; docs/benchmarks.md), and the
+    /// wrists calibrated to lie between their markers ([`CMU_WRIST_CENTRES`]; set
+    /// `config.joint_centre_weight` to 0 for the template's forearms); the
+    /// joints that skeleton never rotates (no degrees of freedom in the ASF, and the clavicles,
+    /// which CMU's solutions never turn) stay still.
     ///
     /// # Errors
     /// The shipped solver does not load (a damaged build).
     pub fn cmu41() -> Result<KinematicSolver, NnError> {
+        // The template's wrist markers lie 45-75 mm from its hand joints (docs/benchmarks.md,
+        // "Kinematic solver: ASF degrees of freedom"): the calibration fits the forearms so the
+        // wrist centre lies between them.
+        KinematicSolver::cmu41_with(|skeleton| cmu_asf_dofs(skeleton, CmuLimits::Solved))?
+            .with_joint_centres(CMU_WRIST_CENTRES)
+    }
+
+    /// [`KinematicSolver::cmu41`] with each joint's freedom from `dofs` (given the shipped
+    /// skeleton; one entry per joint), where the shipped skeleton rotates the joint at all:
+    /// e.g. `|s| vec![JointDofs::Free; s.len()]`, every rotating joint free in three axes (the
+    /// solver before the ASF's degrees of freedom), or [`cmu_asf_dofs`] with other limits.
+    ///
+    /// # Errors
+    /// The shipped solver does not load, or `dofs` gives not one entry per joint.
+    pub fn cmu41_with(dofs: impl FnOnce(&Skeleton) -> Vec<JointDofs>) -> Result<KinematicSolver, NnError> {
         let device = Default::default();
         let shipped = crate::shipped::solver(&device)?;
-        let dofs = shipped
-            .meta
-            .rotating
-            .iter()
+        let skeleton = &shipped.meta.skeleton;
+        let given = dofs(skeleton);
+        if given.len() != skeleton.len() {
+            return Err(NnError::Kinematic(format!(
+                "{} joint freedoms for the shipped skeleton of {} joints",
+                given.len(),
+                skeleton.len()
+            )));
+        }
+        let dofs = given
+            .into_iter()
+            .zip(&shipped.meta.rotating)
             .enumerate()
-            .map(|(j, r)| if *r || j == 0 { JointDofs::Free } else { JointDofs::Axes(Vec::new()) })
+            .map(|(j, (d, r))| if *r || j == 0 { d } else { JointDofs::Axes(Vec::new()) })
             .collect();
-        KinematicSolver::new(&Layout::cmu41(), &shipped.meta.skeleton, Some(dofs))
+        KinematicSolver::new(&Layout::cmu41(), skeleton, Some(dofs))
+    }
+
+    /// The same solver with joints that lie at the mean of markers around them, by name: the
+    /// subject calibration fits the bone lengths to put them there ([`JointCentre`]).
+    ///
+    /// # Errors
+    /// A joint the skeleton lacks or a marker the layout lacks.
+    pub fn with_joint_centres(mut self, centres: &[(&str, &[&str])]) -> Result<KinematicSolver, NnError> {
+        let mut found = Vec::with_capacity(centres.len());
+        for (joint, markers) in centres {
+            let j = self
+                .model
+                .skeleton()
+                .index_of(joint)
+                .ok_or_else(|| NnError::Kinematic(format!("joint centre {joint:?}: no such joint")))?;
+            let markers = markers
+                .iter()
+                .map(|m| {
+                    self.markers
+                        .iter()
+                        .position(|n| n == m)
+                        .ok_or_else(|| NnError::Kinematic(format!("joint centre {joint:?}: no marker {m:?}")))
+                })
+                .collect::<Result<Vec<usize>, NnError>>()?;
+            found.push(JointCentre { joint: j, markers });
+        }
+        self.model = self.model.with_joint_centres(found).map_err(config_error)?;
+        Ok(self)
     }
 
     /// The layout's marker names, model order.

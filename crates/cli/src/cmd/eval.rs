@@ -46,6 +46,10 @@ pub struct Args {
     /// skeleton, calibrated on each take; no training): Table 1's optimization-based column.
     #[arg(long, help_heading = "Input")]
     kinematic: bool,
+    /// The kinematic solver keeps the template's forearm lengths instead of calibrating each
+    /// wrist centre to lie between its two wrist markers.
+    #[arg(long, requires = "kinematic", help_heading = "Input")]
+    no_wrist_centres: bool,
     /// Write the results as JSON.
     #[arg(long, value_name = "FILE", help_heading = "Output")]
     json: Option<PathBuf>,
@@ -132,7 +136,15 @@ pub fn run(args: Args) -> Result<ExitCode> {
     };
     let data = crate::training::solver_data(&args.data)?;
     eprintln!("evaluating {} models on {} takes, {} frames", solvers.len(), data.shards.len(), data.frames());
-    let kinematic = if args.kinematic { Some(KinematicSolver::cmu41()?) } else { None };
+    let kinematic = if args.kinematic {
+        let mut k = KinematicSolver::cmu41()?;
+        if args.no_wrist_centres {
+            k.config.joint_centre_weight = 0.0;
+        }
+        Some(k)
+    } else {
+        None
+    };
     let mut refs: Vec<(String, Method)> = Vec::new();
     if let Some(k) = &kinematic {
         refs.push(("kinematic".into(), Method::Kinematic(k)));

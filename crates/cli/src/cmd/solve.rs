@@ -103,6 +103,10 @@ pub struct Args {
     /// Skeleton (ASF or BVH, Y up) for a --layout without a skeleton section.
     #[arg(long, value_name = "FILE", requires = "layout", help_heading = "Solver")]
     skeleton: Option<PathBuf>,
+    /// The CMU kinematic solver (no --layout) keeps the template's forearm lengths instead of
+    /// calibrating each wrist centre to lie between its two wrist markers.
+    #[arg(long, conflicts_with = "layout", help_heading = "Solver")]
+    no_wrist_centres: bool,
 }
 
 /// Solving methods on the command line.
@@ -206,7 +210,13 @@ pub fn run(args: Args) -> Result<ExitCode> {
     };
     let kinematic = match args.method {
         Method::Network => None,
-        Method::Ik | Method::Auto => Some(kinematic_solver(args.layout.as_deref(), args.skeleton.as_deref())?),
+        Method::Ik | Method::Auto => {
+            let mut k = kinematic_solver(args.layout.as_deref(), args.skeleton.as_deref())?;
+            if args.no_wrist_centres {
+                k.config.joint_centre_weight = 0.0;
+            }
+            Some(k)
+        }
     };
     let files = inputs::expand(&args.inputs, &["c3d", "trc"])?;
     let targets = outputs(&args.inputs, &files, &args.output, &args.to, export::MOTION_EXTENSIONS)?;
