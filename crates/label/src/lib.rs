@@ -38,6 +38,7 @@ pub mod ik;
 pub mod initial_fit;
 pub mod kalman;
 pub mod labeler;
+pub mod model;
 pub mod pose_fit;
 pub mod reacquire;
 pub mod start;
@@ -47,6 +48,7 @@ pub mod template;
 pub use cloud::PointFrames;
 pub use initial_fit::{FitConfig, FitMethod, InitialFit, fit_first_frame};
 pub use labeler::{LabelConfig, Labeler, Method};
+pub use model::ModelMarker;
 pub use template::Template;
 
 use locap_core::{MarkerName, Take, UpAxis};
