@@ -8,7 +8,7 @@
 //! shape fitted to the take's markers and the pair distance that differs most, per joint how
 //! far the centre as placed by the two segments' true placements misses.
 
-use locap_eval::label_bench::score;
+use locap_eval::label_bench::{marker_errors, score, truth_in_template_order};
 use locap_eval::label_layout::template_from_layout;
 use locap_eval::unlabel::{GhostMode, UnlabelConfig, unlabel};
 use locap_label::{FitConfig, LabelConfig, Start, label_frames};
@@ -97,15 +97,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     }
     let config = UnlabelConfig { frame_rate_hz: Some(fps), ghosts, ghost_mode: GhostMode::Near, drop: None, seed: 11 };
     let u = unlabel(&take, &config)?;
-    // Take column -> template marker.
-    let column: Vec<i32> =
-        take.markers().iter().map(|n| names.iter().position(|l| *l == n.label).map_or(-1, |k| k as i32)).collect();
-    let truth: Vec<Vec<i32>> = u
-        .truth_by_frame()
-        .iter()
-        .map(|t| t.iter().map(|&k| if k >= 0 { column[k as usize] } else { -1 }).collect())
-        .collect();
-    let truth: Vec<&[i32]> = truth.iter().map(|t| t.as_slice()).collect();
+    let truth = truth_in_template_order(&u.truth_by_frame(), &template, &take);
+    let truth: Vec<&[i32]> = truth.iter().map(Vec::as_slice).collect();
     let started = std::time::Instant::now();
     let (labels, fit) = label_frames(
         &u.frames,
@@ -126,15 +119,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         100.0 * s.missed as f64 / s.samples as f64,
         started.elapsed().as_secs_f64()
     );
-    for (m, n) in names.iter().enumerate() {
-        let (mut wrong, mut missed) = (0, 0);
-        for (f, t) in truth.iter().enumerate() {
-            match (labels.get(f, m), t.iter().position(|&k| k == m as i32)) {
-                (g, o) if g == o => {}
-                (None, Some(_)) => missed += 1,
-                _ => wrong += 1,
-            }
-        }
+    for ((wrong, missed), n) in marker_errors(&truth, &labels, template.marker_count()).into_iter().zip(&names) {
         if wrong + missed > 0 {
             println!("  {n}: {wrong} wrong, {missed} missed");
         }

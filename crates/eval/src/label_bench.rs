@@ -223,6 +223,36 @@ impl Score {
     }
 }
 
+/// Per marker of `labels`, its (wrong, missed) samples against the per-frame point truth
+/// `truth` (as [`score`] counts them).
+pub fn marker_errors(truth: &[&[i32]], labels: &Labels, markers: usize) -> Vec<(usize, usize)> {
+    (0..markers)
+        .map(|m| {
+            let (mut wrong, mut missed) = (0, 0);
+            for (f, t) in truth.iter().enumerate() {
+                match (labels.get(f, m), t.iter().position(|&k| k == m as i32)) {
+                    (g, o) if g == o => {}
+                    (None, Some(_)) => missed += 1,
+                    _ => wrong += 1,
+                }
+            }
+            (wrong, missed)
+        })
+        .collect()
+}
+
+/// The point truth of an unlabeled take (per frame, each point's take column) in the marker
+/// order of `template`, whose markers are matched to `take`'s columns by label (-1 for a
+/// column the template lacks: its points count as ghosts).
+pub fn truth_in_template_order(truth: &[&[i32]], template: &Template, take: &Take) -> Vec<Vec<i32>> {
+    let columns = layout_columns(template, take);
+    remap(truth, &columns)
+}
+
+fn remap(truth: &[&[i32]], columns: &[i32]) -> Vec<Vec<i32>> {
+    truth.iter().map(|t| t.iter().map(|&k| if k >= 0 { columns[k as usize] } else { -1 }).collect()).collect()
+}
+
 /// Scores `labels` of a segment whose per-frame point truth is `truth`.
 pub fn score(truth: &[&[i32]], labels: &Labels, markers: usize) -> Score {
     let mut s = Score { frames: truth.len() as u64, trajectories: markers as u64, ..Score::default() };
@@ -505,10 +535,7 @@ fn label_segment_layout(
 ) -> Result<Score, LabelError> {
     let frames = case.unlabeled.frames.slice_frames(range.clone());
     let by_frame = case.unlabeled.truth_by_frame();
-    let truth: Vec<Vec<i32>> = by_frame[range]
-        .iter()
-        .map(|t| t.iter().map(|&k| if k >= 0 { case.columns[k as usize] } else { -1 }).collect())
-        .collect();
+    let truth = remap(&by_frame[range], &case.columns);
     let truth: Vec<&[i32]> = truth.iter().map(Vec::as_slice).collect();
     let m = case.template.marker_count();
     let started = Instant::now();

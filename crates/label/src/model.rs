@@ -108,7 +108,7 @@ fn model_body(skeleton: &Skeleton, markers: &[ModelMarker]) -> Option<Body> {
     // Bones with three markers or more are segments.
     let mut segment_of_joint = vec![None; skeleton.len()];
     let mut segments: Vec<Segment> = Vec::new();
-    for j in 0..skeleton.len() {
+    for (j, slot) in segment_of_joint.iter_mut().enumerate() {
         let on: Vec<usize> = (0..markers.len()).filter(|&i| markers[i].joint == j).collect();
         if on.len() < 3 {
             continue;
@@ -116,7 +116,7 @@ fn model_body(skeleton: &Skeleton, markers: &[ModelMarker]) -> Option<Body> {
         let centroid = on.iter().map(|&i| markers[i].rest_mm).sum::<Vec3>() / on.len() as f64;
         let local_mm: Vec<Vec3> = on.iter().map(|&i| markers[i].rest_mm - centroid).collect();
         let tolerance_mm = local_mm.iter().map(|l| tolerance(l.norm())).collect();
-        segment_of_joint[j] = Some(segments.len());
+        *slot = Some(segments.len());
         segments.push(Segment { markers: on, local_mm, tolerance_mm });
     }
     if segments.is_empty() {
@@ -135,8 +135,8 @@ fn model_body(skeleton: &Skeleton, markers: &[ModelMarker]) -> Option<Body> {
     };
     let mut body_joints = Vec::new();
     // Skeleton order puts parents first, so joints come parents before children.
-    for j in 0..skeleton.len() {
-        let Some(child) = segment_of_joint[j] else { continue };
+    for (j, own) in segment_of_joint.iter().enumerate() {
+        let Some(child) = *own else { continue };
         let Some((parent, below)) = ancestor(j) else { continue };
         let centre = rest.positions_mm[below];
         let (pc, cc) = (centroid(&segments[parent], 0), centroid(&segments[child], 0));
