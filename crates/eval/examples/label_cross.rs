@@ -4,7 +4,7 @@
 //! labels each half of TAKE with the other half as template (points shuffled every frame,
 //! GHOSTS near ghosts per frame, default 0; FPS default the take's rate).
 
-use locap_eval::label_bench::score;
+use locap_eval::label_bench::{marker_errors, score};
 use locap_eval::unlabel::{GhostMode, UnlabelConfig, unlabel};
 use locap_label::{FitConfig, LabelConfig, Start, Template, label_frames};
 
@@ -59,16 +59,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             100.0 * s.missed as f64 / s.samples as f64,
             started.elapsed().as_secs_f64()
         );
-        for (m, n) in names.iter().enumerate() {
-            let (mut wrong, mut missed) = (0, 0);
-            for (f, t) in truth.iter().enumerate() {
-                let own = t.iter().position(|&k| k == m as i32);
-                match (labels.get(f, m), own) {
-                    (g, o) if g == o => {}
-                    (None, Some(_)) => missed += 1,
-                    _ => wrong += 1,
-                }
-            }
+        let errors = marker_errors(&truth, &labels, template.marker_count());
+        for (m, (n, (wrong, missed))) in names.iter().zip(errors).enumerate() {
             if wrong + missed > 0 {
                 println!(
                     "  {n}: {wrong} wrong, {missed} missed; at the fit {:?}",

@@ -24,6 +24,14 @@
 //! backwards from there), not from true labels. These rows read `other half` in the template
 //! column; segments whose fit found no frame it was sure of are counted (`failed fits`) and
 //! score their samples as missed.
+//!
+//! # The layout case
+//! With [`LabelBenchConfig::layout`] (a template from a marker layout alone, no labeled take:
+//! [`crate::label_layout`]), every take that has at least half of the layout's markers is also
+//! labeled with it, segment by segment, as `locap label --layout` labels a take: the model's
+//! first fit, then the template calibrated on the segment and the segment labeled again
+//! ([`locap_label::subject`]). These rows read `layout`; their frames/s and fit time count the
+//! fit, the calibration rounds and tracking together.
 
 use crate::gap_model::GapModel;
 use crate::unlabel::{GhostMode, UnlabelConfig, UnlabelError, Unlabeled, unlabel};
@@ -78,6 +86,10 @@ pub struct LabelBenchConfig {
     /// Also label each half of every take with the other half as template (our method
     /// only, started by the articulated fit).
     pub cross_trial: bool,
+    /// A template from a marker layout alone ([`crate::label_layout`]): every take that has
+    /// at least half of its markers (matched by label) is also labeled with it, our method
+    /// only (rows `layout`).
+    pub layout: Option<Template>,
     /// Seed.
     pub seed: u64,
 }
@@ -92,6 +104,7 @@ impl Default for LabelBenchConfig {
             segment_s: 10.0,
             methods: Method::ALL.iter().map(|&m| LabelConfig::with_method(m)).collect(),
             cross_trial: true,
+            layout: None,
             seed: 1,
         }
     }
@@ -210,6 +223,36 @@ impl Score {
     }
 }
 
+/// Per marker of `labels`, its (wrong, missed) samples against the per-frame point truth
+/// `truth` (as [`score`] counts them).
+pub fn marker_errors(truth: &[&[i32]], labels: &Labels, markers: usize) -> Vec<(usize, usize)> {
+    (0..markers)
+        .map(|m| {
+            let (mut wrong, mut missed) = (0, 0);
+            for (f, t) in truth.iter().enumerate() {
+                match (labels.get(f, m), t.iter().position(|&k| k == m as i32)) {
+                    (g, o) if g == o => {}
+                    (None, Some(_)) => missed += 1,
+                    _ => wrong += 1,
+                }
+            }
+            (wrong, missed)
+        })
+        .collect()
+}
+
+/// The point truth of an unlabeled take (per frame, each point's take column) in the marker
+/// order of `template`, whose markers are matched to `take`'s columns by label (-1 for a
+/// column the template lacks: its points count as ghosts).
+pub fn truth_in_template_order(truth: &[&[i32]], template: &Template, take: &Take) -> Vec<Vec<i32>> {
+    let columns = layout_columns(template, take);
+    remap(truth, &columns)
+}
+
+fn remap(truth: &[&[i32]], columns: &[i32]) -> Vec<Vec<i32>> {
+    truth.iter().map(|t| t.iter().map(|&k| if k >= 0 { columns[k as usize] } else { -1 }).collect()).collect()
+}
+
 /// Scores `labels` of a segment whose per-frame point truth is `truth`.
 pub fn score(truth: &[&[i32]], labels: &Labels, markers: usize) -> Score {
     let mut s = Score { frames: truth.len() as u64, trajectories: markers as u64, ..Score::default() };
@@ -246,7 +289,7 @@ pub struct Row {
     /// Method name.
     pub method: String,
     /// Where the template came from: `own first frame` (true labels of each segment's first
-    /// frame) or `other half` (the cross-trial case).
+    /// frame), `other half` (the cross-trial case) or `layout` (a marker layout alone).
     #[serde(default)]
     pub template: String,
     /// Identification rate of trajectories (%).
@@ -283,12 +326,25 @@ pub struct LabelBenchReport {
     pub rows: Vec<Row>,
 }
 
+/// Where a case's template came from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Source {
+    /// The take itself, started from each segment's true first labels.
+    Own,
+    /// The other half of the take (cross-trial).
+    OtherHalf,
+    /// A layout ([`LabelBenchConfig::layout`]); the truth's take columns map to template
+    /// markers through `columns`.
+    Layout,
+}
+
 /// One take (or half of one) unlabeled at one rate and ghost count, with its template.
 struct Case<'a> {
     name: &'a String,
     template: Template,
-    /// Whether the template is the other half of the take (cross-trial) rather than the take.
-    cross: bool,
+    source: Source,
+    /// For [`Source::Layout`]: per take column, its template marker (-1: none).
+    columns: Vec<i32>,
     up: UpAxis,
     rate: usize,
     ghosts: usize,
@@ -308,14 +364,21 @@ pub fn run(takes: &[(String, Take)], config: &LabelBenchConfig) -> Result<LabelB
         let template = template_of(take)?;
         // (template, labeled source, seed tag): the take itself, then its halves the other
         // way round.
-        let mut sources = vec![(template, take.clone(), 0u64)];
+        let mut sources = vec![(template, take.clone(), 0u64, Source::Own)];
         let half = take.frame_count() / 2;
         if config.cross_trial && ours.is_some() && half >= 2 {
             let (first, second) = (take.slice_frames(0..half), take.slice_frames(half..take.frame_count()));
-            sources.push((template_of(&second)?, first.clone(), 1));
-            sources.push((template_of(&first)?, second, 2));
+            sources.push((template_of(&second)?, first.clone(), 1, Source::OtherHalf));
+            sources.push((template_of(&first)?, second, 2, Source::OtherHalf));
         }
-        for (template, source, tag) in sources {
+        let columns = config.layout.as_ref().map(|layout| layout_columns(layout, take)).unwrap_or_default();
+        if let Some(layout) = &config.layout
+            && ours.is_some()
+            && 2 * columns.iter().filter(|&&c| c >= 0).count() >= layout.marker_count()
+        {
+            sources.push((layout.clone(), take.clone(), 3, Source::Layout));
+        }
+        for (template, source, tag, kind) in sources {
             for (r, &rate) in config.frame_rates_hz.iter().enumerate() {
                 for (g, &ghosts) in config.ghosts.iter().enumerate() {
                     let unlabel_config = UnlabelConfig {
@@ -337,7 +400,8 @@ pub fn run(takes: &[(String, Take)], config: &LabelBenchConfig) -> Result<LabelB
                     cases.push(Case {
                         name,
                         template: template.clone(),
-                        cross: tag > 0,
+                        source: kind,
+                        columns: if kind == Source::Layout { columns.clone() } else { Vec::new() },
                         up: take.up_axis,
                         rate: r,
                         ghosts: g,
@@ -361,10 +425,13 @@ pub fn run(takes: &[(String, Take)], config: &LabelBenchConfig) -> Result<LabelB
         .par_iter()
         .map(|(c, range)| {
             let case = &cases[*c];
-            let scores = match (case.cross, ours) {
-                (true, Some(k)) => {
+            let scores = match (case.source, ours) {
+                (Source::OtherHalf, Some(k)) => {
                     label_segment_fitted(&case.template, &case.unlabeled, range.clone(), &config.methods[k], case.up)
                         .map(|s| vec![s])
+                }
+                (Source::Layout, Some(k)) => {
+                    label_segment_layout(case, range.clone(), &config.methods[k]).map(|s| vec![s])
                 }
                 _ => label_segment(&case.template, &case.unlabeled, range.clone(), &config.methods),
             };
@@ -374,14 +441,15 @@ pub fn run(takes: &[(String, Take)], config: &LabelBenchConfig) -> Result<LabelB
     let per_setting = config.frame_rates_hz.len() * config.ghosts.len();
     let mut totals = vec![Score::default(); per_setting * config.methods.len()];
     let mut cross = vec![Score::default(); per_setting];
+    let mut layout = vec![Score::default(); per_setting];
     for ((c, _), result) in jobs.iter().zip(results) {
         let case = &cases[*c];
         let setting = case.rate * config.ghosts.len() + case.ghosts;
         for (k, s) in result?.iter().enumerate() {
-            if case.cross {
-                cross[setting].add(s);
-            } else {
-                totals[setting * config.methods.len() + k].add(s);
+            match case.source {
+                Source::OtherHalf => cross[setting].add(s),
+                Source::Layout => layout[setting].add(s),
+                Source::Own => totals[setting * config.methods.len() + k].add(s),
             }
         }
     }
@@ -416,10 +484,18 @@ pub fn run(takes: &[(String, Take)], config: &LabelBenchConfig) -> Result<LabelB
             }
         }
     }
-    if cross.iter().any(|s| s.samples > 0) {
-        for (r, &rate) in config.frame_rates_hz.iter().enumerate() {
-            for (g, ghosts) in config.ghosts.iter().enumerate() {
-                rows.push(row(rate, ghosts, Method::SoftGraph.name(), OTHER_HALF, cross[r * config.ghosts.len() + g]));
+    for (scores, template) in [(&cross, OTHER_HALF), (&layout, LAYOUT)] {
+        if scores.iter().any(|s| s.samples > 0) {
+            for (r, &rate) in config.frame_rates_hz.iter().enumerate() {
+                for (g, ghosts) in config.ghosts.iter().enumerate() {
+                    rows.push(row(
+                        rate,
+                        ghosts,
+                        Method::SoftGraph.name(),
+                        template,
+                        scores[r * config.ghosts.len() + g],
+                    ));
+                }
             }
         }
     }
@@ -437,6 +513,44 @@ pub fn run(takes: &[(String, Take)], config: &LabelBenchConfig) -> Result<LabelB
 pub const OWN_FIRST_FRAME: &str = "own first frame";
 /// [`Row::template`] of the cross-trial case.
 pub const OTHER_HALF: &str = "other half";
+/// [`Row::template`] of the layout case ([`LabelBenchConfig::layout`]).
+pub const LAYOUT: &str = "layout";
+
+/// Per column of `take`, the marker of `template` of the same label (-1: none).
+fn layout_columns(template: &Template, take: &Take) -> Vec<i32> {
+    take.markers()
+        .iter()
+        .map(|n| template.names().iter().position(|t| t.label == n.label).map_or(-1, |k| k as i32))
+        .collect()
+}
+
+/// Labels one segment of a layout case the way `locap label --layout` labels a take (the
+/// model's first fit, then the template calibrated on the segment: [`label_frames`] with a
+/// fit start); the fit and calibration are timed with tracking, as one. A segment the fit is
+/// sure of no frame of leaves every sample missed.
+fn label_segment_layout(
+    case: &Case<'_>,
+    range: std::ops::Range<usize>,
+    config: &LabelConfig,
+) -> Result<Score, LabelError> {
+    let frames = case.unlabeled.frames.slice_frames(range.clone());
+    let by_frame = case.unlabeled.truth_by_frame();
+    let truth = remap(&by_frame[range], &case.columns);
+    let truth: Vec<&[i32]> = truth.iter().map(Vec::as_slice).collect();
+    let m = case.template.marker_count();
+    let started = Instant::now();
+    let labeled = label_frames(&frames, &case.template, config, Start::Fit(config.fit, case.up), None);
+    let seconds = started.elapsed().as_secs_f64();
+    let timed = Score { fits: 1, fit_seconds: seconds, seconds, ..Score::default() };
+    match labeled {
+        Ok((labels, _)) => Ok(timed.plus(score(&truth, &labels, m))),
+        Err(LabelError::FirstFrame(_)) => {
+            let nothing = Labels::from_frames(m, &vec![Vec::new(); truth.len()]);
+            Ok(Score { failed_fits: 1, ..timed.plus(score(&truth, &nothing, m)) })
+        }
+        Err(e) => Err(e),
+    }
+}
 
 /// Labels one segment with `config`, started by the articulated first fit (timed on its
 /// own); a fit that is sure of no frame leaves every sample missed.

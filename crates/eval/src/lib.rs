@@ -36,5 +36,6 @@ pub mod fill_lengths;
 /// model); re-exported so `locap_eval::gap_model` keeps working.
 pub use locap_synth::gap_model;
 pub mod label_bench;
+pub mod label_layout;
 pub mod solver;
 pub mod unlabel;

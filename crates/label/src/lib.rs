@@ -7,6 +7,7 @@
 //! after frame, using only the frames seen so far (online):
 //!
 //! - [`template`]: the marker set, a labeled reference pose and each marker's rigid edges;
+//!   [`model`]: the same from markers on a skeleton at rest, with no labeled take;
 //! - [`initial_fit`]: labels of the first frame by fitting the template (section 3, end);
 //! - [`kalman`]: a constant-velocity Kalman filter per marker predicts and gates candidates;
 //! - [`labeler`]: the frame loop: soft graph matching on the rigid edges (Eq. 1-5,
@@ -38,6 +39,7 @@ pub mod ik;
 pub mod initial_fit;
 pub mod kalman;
 pub mod labeler;
+pub mod model;
 pub mod pose_fit;
 pub mod reacquire;
 pub mod start;
@@ -47,6 +49,7 @@ pub mod template;
 pub use cloud::PointFrames;
 pub use initial_fit::{FitConfig, FitMethod, InitialFit, fit_first_frame};
 pub use labeler::{LabelConfig, Labeler, Method};
+pub use model::ModelMarker;
 pub use template::Template;
 
 use locap_core::{MarkerName, Take, UpAxis};
@@ -417,9 +420,10 @@ pub struct Labeled {
     pub frames: PointFrames,
     /// The first frame's fit of the template.
     pub fit: InitialFit,
-    /// When the template's body was sure of no frame (another subject), the template
-    /// calibrated on the take that labeled it ([`subject::label_adapting`]): its edges are
-    /// this subject's, for confidences.
+    /// When the template's body was sure of no frame (another subject), or the template is a
+    /// marker model's ([`Template::from_model`]), the template calibrated on the take that
+    /// labeled it ([`subject::label_adapting`]): its edges are this subject's, for
+    /// confidences.
     pub calibrated: Option<Template>,
 }
 

@@ -77,8 +77,9 @@ pub struct Adapted {
     pub calibrated: Option<Template>,
 }
 
-/// Labels `frames` (vertical axis `up`) with `template`: from the template's own first fit
-/// when it is sure of a frame; else, for another subject, from the first fit with loose
+/// Labels `frames` (vertical axis `up`) with `template`: a template built from a marker
+/// model ([`Template::is_model`]) always as another subject's; else from the template's own
+/// first fit when it is sure of a frame; else, for another subject, from the first fit with loose
 /// joints, then again with the template calibrated on the labels (module docs).
 ///
 /// # Errors
@@ -91,6 +92,11 @@ pub fn label_adapting(
     up: UpAxis,
     pose_model: Option<MarkerModel>,
 ) -> Result<Adapted, LabelError> {
+    if template.is_model() {
+        // A generic model's distances are not the subject's: its labels only start the
+        // calibration, whatever its own fit is sure of.
+        return label_calibrating(frames, template, config, pose_model);
+    }
     let own = fit_start(frames, template, up, &config.fit);
     match (own, template.body()) {
         (Err(LabelError::FirstFrame(own)), Some(_)) if config.fit.method == FitMethod::Articulated => {

@@ -42,6 +42,8 @@ pub struct Template {
     reference_mm: Vec<Option<Vec3>>,
     edges: Vec<Vec<Edge>>,
     body: Option<Body>,
+    /// Built from a marker model, not a labeled take ([`crate::model`]).
+    model: bool,
 }
 
 impl Template {
@@ -91,7 +93,25 @@ impl Template {
             .map_err(|e| LabelError::Template(e.to_string()))?;
         let reference_mm: Vec<Option<Vec3>> = (0..keep.len()).map(|m| labeled.position_mm(reference, m)).collect();
         let (edges, body) = rigid_edges(&labeled, RANKED_NEIGHBOURS);
-        Ok(Template { names, reference_mm, edges, body })
+        Ok(Template { names, reference_mm, edges, body, model: false })
+    }
+
+    /// A template from its parts ([`crate::model`]).
+    pub(crate) fn from_parts(
+        names: Vec<MarkerName>,
+        reference_mm: Vec<Option<Vec3>>,
+        edges: Vec<Vec<Edge>>,
+        body: Option<Body>,
+        model: bool,
+    ) -> Template {
+        Template { names, reference_mm, edges, body, model }
+    }
+
+    /// True for a template built from a marker model ([`Template::from_model`]) rather than
+    /// a labeled take: its distances are a generic model's, so a take is always labeled with
+    /// it calibrated on the take ([`crate::subject::label_adapting`]).
+    pub fn is_model(&self) -> bool {
+        self.model
     }
 
     /// Marker names, in the order labels are reported.

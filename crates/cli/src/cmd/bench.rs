@@ -65,6 +65,11 @@ pub struct LabelArgs {
     /// Seed (same seed, same points).
     #[arg(long, default_value_t = 1)]
     seed: u64,
+    /// A marker layout with its skeleton (`locap layout --from-opensim`): takes with at least
+    /// half of its markers are also labeled from it alone, as `locap label --layout` does
+    /// (rows `layout`; slow: the fit and calibration rounds run on every segment).
+    #[arg(long, value_name = "FILE")]
+    layout: Option<PathBuf>,
     /// Also write the report as JSON.
     #[arg(long, value_name = "FILE")]
     json: Option<PathBuf>,
@@ -221,6 +226,13 @@ fn label(args: LabelArgs) -> Result<ExitCode> {
         },
         segment_s: args.segment,
         seed: args.seed,
+        layout: match &args.layout {
+            Some(path) => Some(
+                locap_eval::label_layout::template_from_layout(&crate::cmd::layout::read_layout(path)?)
+                    .with_context(|| format!("{}", path.display()))?,
+            ),
+            None => None,
+        },
         ..LabelBenchConfig::default()
     };
     eprintln!(

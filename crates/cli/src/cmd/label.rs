@@ -2,7 +2,10 @@
 //! sections 3 and 4; see `locap_label`), one take per job.
 //!
 //! The template is a labeled take of the same marker set (a T-pose, a range-of-motion take,
-//! or any labeled take of the subject, in any pose); labeling starts by fitting the body the
+//! or any labeled take of the subject, in any pose), or, with `--layout` alone, a marker
+//! layout that brings its skeleton (`locap layout --from-opensim`: no labeled take at all;
+//! `locap_eval::label_layout`, `locap_label::model`), whose first labels only start the
+//! calibration on the take; labeling starts by fitting the body the
 //! template shows (rigid segments and their joints, `locap_label::body`) to the first raw
 //! frame it is sure of, whatever the pose, and runs forwards and backwards from there
 //! (`--fit rigid`: the older rigid fit of one template frame to the first frame, for takes
@@ -22,6 +25,10 @@
 //!   many were labeled;
 //! - `LOCAP:LABEL_UNCERTAIN`: the uncertain samples, `LABEL first-last` per run in C3D frame
 //!   numbers, in the compact form of `LOCAP:FILLED` (`locap_core::range_list`).
+//!
+//! Flags: `--template FILE` labels with a labeled take; `--layout FILE` without `--template`
+//! labels with the layout's own model; `--skeleton FILE --layout FILE` (with or without
+//! `--template`) estimates missing markers from a pose of that skeleton fitted every frame.
 //!
 //! The labeling itself is one call, `locap_label::label_take` (or `label_take_with_pose` with
 //! `--skeleton`); this command finds the files, reads and writes them, records `LOCAP:LABELED`
@@ -43,18 +50,23 @@ const EDGE_TOLERANCE_MM: f64 = 20.0;
 
 /// Arguments of `locap label`.
 #[derive(Parser, Debug)]
-#[command(after_help = "Examples:\n  locap label raw.c3d --template tpose.c3d -o labeled.c3d\n  \
-                        locap label raw_takes/ --template tpose.c3d -o labeled/ --keep-unlabeled")]
+#[command(
+    after_help = "Examples:\n  locap label raw.c3d --template tpose.c3d -o labeled.c3d\n  \
+                  locap label raw_takes/ --template tpose.c3d -o labeled/ --keep-unlabeled\n  \
+                  locap layout --from-opensim model.osim MarkerSet.xml -o layout.toml\n  \
+                  locap label raw.c3d --layout layout.toml -o labeled.c3d",
+    group(clap::ArgGroup::new("source").required(true).multiple(true).args(["template", "layout"]))
+)]
 pub struct Args {
     /// Raw C3D takes (unlabeled or mislabeled points; labels are ignored), or folders.
     #[arg(required = true, value_name = "FILE")]
     inputs: Vec<PathBuf>,
-    /// A labeled C3D take of the same marker set.
+    /// A labeled C3D take of the same marker set. Without it, --layout is the template.
     #[arg(long, value_name = "FILE", help_heading = "Template")]
-    template: PathBuf,
+    template: Option<PathBuf>,
     /// Frame of the template whose pose the raw takes start in (0-based); default: the first
     /// frame with the most markers visible.
-    #[arg(long, value_name = "N", help_heading = "Template")]
+    #[arg(long, value_name = "N", requires = "template", help_heading = "Template")]
     template_frame: Option<usize>,
     /// How the first labels are found: fit the template's articulated body to the first
     /// frame it is sure of (any pose), or fit one template frame rigidly to the first frame.
@@ -78,9 +90,12 @@ pub struct Args {
     /// neighbours alone. Slower: hundreds of frames per second.
     #[arg(long, value_name = "FILE", requires = "layout", help_heading = "Skeleton")]
     skeleton: Option<PathBuf>,
-    /// Marker layout on that skeleton (TOML or JSON, e.g. crates/synth/layouts/cmu41.toml);
+    /// Marker layout (TOML or JSON). Without --template: the template itself, a layout that
+    /// brings its skeleton (`locap layout --from-opensim`), for labeling with no labeled take
+    /// (its first labels start a calibration on the take). With --skeleton: the markers on
+    /// that skeleton, for estimating missing markers (e.g. crates/synth/layouts/cmu41.toml);
     /// template markers are matched to layout markers by label.
-    #[arg(long, value_name = "FILE", requires = "skeleton", help_heading = "Skeleton")]
+    #[arg(long, value_name = "FILE", help_heading = "Skeleton")]
     layout: Option<PathBuf>,
     /// Labeling method: soft graph matching (ours), or a baseline.
     #[arg(long, value_enum, default_value_t = MethodArg::Ours, help_heading = "Labeling")]
@@ -132,12 +147,30 @@ pub fn run(args: Args) -> Result<ExitCode> {
     if args.truth.is_some() && files.len() != 1 {
         return Err(inputs::usage(format!("--truth scores one take; {} were given", files.len())));
     }
-    let auxiliary = [Some(&args.template), args.truth.as_ref(), args.skeleton.as_ref(), args.layout.as_ref()];
+    let auxiliary = [args.template.as_ref(), args.truth.as_ref(), args.skeleton.as_ref(), args.layout.as_ref()];
     inputs::protect(&auxiliary.iter().flatten().map(|p| p.as_path()).collect::<Vec<_>>())?;
     let targets = inputs::targets(&args.inputs, &files, &args.output)?;
-    let template_take = inputs::read_c3d(&args.template)?.to_take().map_err(|e| e.in_file(&args.template))?;
-    let template = Template::from_take(&template_take, args.template_frame)
-        .with_context(|| format!("{}", args.template.display()))?;
+    let template = match (&args.template, &args.layout) {
+        (Some(path), layout) => {
+            if layout.is_some() && args.skeleton.is_none() {
+                return Err(inputs::usage(
+                    "--layout with --template estimates missing markers on --skeleton, which is missing \
+                     (to label from the layout alone, leave --template out)",
+                ));
+            }
+            let take = inputs::read_c3d(path)?.to_take().map_err(|e| e.in_file(path))?;
+            Template::from_take(&take, args.template_frame).with_context(|| format!("{}", path.display()))?
+        }
+        (None, Some(layout)) => {
+            if matches!(args.fit, FitArg::Rigid) {
+                return Err(inputs::usage("--fit rigid fits a template take's frame: it needs --template"));
+            }
+            let read = crate::cmd::layout::read_layout(layout)?;
+            locap_eval::label_layout::template_from_layout(&read).with_context(|| format!("{}", layout.display()))?
+        }
+        // clap requires one of the two.
+        (None, None) => return Err(inputs::usage("--template or --layout is required")),
+    };
     let model = match (&args.skeleton, &args.layout) {
         (Some(skeleton), Some(layout)) => Some(marker_model(skeleton, layout, &template)?),
         _ => None,
@@ -209,7 +242,10 @@ fn label_one(
     file.parameters.set_strings(
         "LOCAP",
         "LABELED",
-        &[format!("{} template {}", config.method.name(), args.template.display())],
+        &[match (&args.template, &args.layout) {
+            (Some(t), _) => format!("{} template {}", config.method.name(), t.display()),
+            (None, l) => format!("{} layout {}", config.method.name(), l.as_deref().unwrap_or(Path::new("")).display()),
+        }],
     );
     let m = template.marker_count();
     let t = labeled.labels.frame_count();
