@@ -175,21 +175,28 @@ pub fn splitmix(state: &mut u64) -> u64 {
 /// markers until `missing` (a fraction) of its samples are hidden. Returns the take and the
 /// number of gaps drawn (overlapping ones included). What `locap clean` is timed on for the
 /// issue's "10-minute take with 2% missing" (`examples/long_take.rs` writes it as C3D).
+/// Never more samples are hidden than are captured, and the draws are bounded, so a source
+/// with few captured samples ends with fewer hidden than asked; a source without frames or
+/// markers comes back as it is.
 pub fn long_take(source: &Take, frames: usize, missing: f64, seed: u64) -> (Take, usize) {
     let (n, m) = (source.frame_count(), source.marker_count());
+    if n == 0 || m == 0 {
+        return (source.clone(), 0);
+    }
     let mut samples = Vec::with_capacity(frames * m);
     for f in 0..frames {
-        let (lap, k) = (f / n.max(1), f % n.max(1));
+        let (lap, k) = (f / n, f % n);
         let src = if lap % 2 == 0 { k } else { n - 1 - k };
         samples.extend((0..m).map(|j| source.position_mm(src, j)));
     }
     let mut take = Take::from_samples(source.markers().to_vec(), &samples, source.frame_rate_hz())
         .expect("samples of a valid take make a valid take");
     let longest = ((2.0 * source.frame_rate_hz()).round() as usize).clamp(1, frames.saturating_sub(1).max(1));
-    let target = (frames as f64 * m as f64 * missing.clamp(0.0, 1.0)) as usize;
+    let captured = samples.iter().filter(|p| p.is_some()).count();
+    let target = ((frames as f64 * m as f64 * missing.clamp(0.0, 1.0)) as usize).min(captured);
     let mut state = seed;
     let (mut hidden, mut gaps) = (0, 0);
-    while hidden < target && frames > longest {
+    while hidden < target && frames > longest && gaps < frames * m {
         let marker = (splitmix(&mut state) % m as u64) as usize;
         let len = 1 + (splitmix(&mut state) % longest as u64) as usize;
         let start = (splitmix(&mut state) % (frames - len) as u64) as usize;
@@ -497,6 +504,32 @@ mod tests {
     fn wave(frames: usize) -> Take {
         let names = ["LFRM", "LWRA", "LWRB", "RFRM", "RWRA", "HEAD"];
         locap_testkit::rigid_cluster(frames, names.len(), |i| names[i].to_string(), |_, _| [0.0; 3])
+    }
+
+    #[test]
+    fn a_long_take_plays_its_source_back_and_forth_and_stops_when_nothing_is_left_to_hide() {
+        let source = wave(300);
+        let (long, gaps) = long_take(&source, 1000, 0.02, 7);
+        assert_eq!((long.frame_count(), long.marker_count()), (1000, 6));
+        assert!(gaps > 0);
+        let hidden = (0..1000).map(|f| (0..6).filter(|j| !long.is_valid(f, *j)).count()).sum::<usize>();
+        assert!((120..320).contains(&hidden), "{hidden} hidden");
+        // Frame 450 is the backward lap's frame 300 - 1 - 150.
+        let j = (0..6).find(|j| long.is_valid(450, *j)).unwrap();
+        assert_eq!(long.position_mm(450, j), source.position_mm(149, j));
+        // A source with one captured sample cannot give 50% missing: it ends anyway.
+        let mut sparse = wave(300);
+        for f in 0..300 {
+            for j in 0..6 {
+                if (f, j) != (0, 0) {
+                    sparse.set_position_mm(f, j, None).unwrap();
+                }
+            }
+        }
+        let (long, _) = long_take(&sparse, 1000, 0.5, 7);
+        assert!((0..1000).all(|f| (1..6).all(|j| !long.is_valid(f, j))));
+        let (empty, gaps) = long_take(&Take::from_samples(vec![], &[], 100.0).unwrap(), 1000, 0.02, 7);
+        assert_eq!((empty.frame_count(), gaps), (0, 0));
     }
 
     #[test]
