@@ -86,9 +86,22 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 .collect();
             let mean = misses.iter().sum::<f64>() / misses.len().max(1) as f64;
             let max = misses.iter().copied().fold(0.0, f64::max);
+            // The miss in the child's frame (the model's rest axes: y along a limb's bone).
+            let mut axes = [0.0f64; 3];
+            let mut n = 0usize;
+            for f in (0..take.frame_count()).step_by(20) {
+                let (Some(p), Some(c)) = (place(j.parent, f), place(j.child, f)) else { continue };
+                let miss = c.rotation.inverse() * (p.apply(&j.parent_mm) - c.apply(&j.child_mm));
+                for (a, v) in axes.iter_mut().zip(miss.iter()) {
+                    *a += v.abs();
+                }
+                n += 1;
+            }
+            let axes = axes.map(|a| a / n.max(1) as f64);
             println!(
-                "joint {} -> {}: tolerance {:.1} mm, miss on the take mean {mean:.0} max {max:.0} mm",
-                j.parent, j.child, j.tolerance_mm
+                "joint {} -> {}: tolerance {:.1} mm, miss on the take mean {mean:.0} max {max:.0} mm \
+                 (in the child's frame x {:.0} y {:.0} z {:.0})",
+                j.parent, j.child, j.tolerance_mm, axes[0], axes[1], axes[2]
             );
         }
         for a in &body.attached {

@@ -62,7 +62,17 @@ pub fn template_from_layout(layout: &Layout) -> Result<Template, LayoutTemplateE
             rest_mm: m.position_mm(&rest, Vec3::zeros()),
         })
         .collect();
-    Template::from_model(&skeleton, &markers).map_err(|error| LayoutTemplateError::Template { name, error })
+    // Each skeleton joint's rotation axes, where the layout lists its degrees of freedom.
+    let axes: Vec<Option<Vec<Vec3>>> = skeleton
+        .joints()
+        .iter()
+        .map(|joint| {
+            let listed = section.joints.iter().find(|j| j.name == joint.name)?;
+            Some(listed.dofs.as_ref()?.iter().map(|d| Vec3::from(d.axis)).collect())
+        })
+        .collect();
+    Template::from_model_with_axes(&skeleton, &markers, &axes)
+        .map_err(|error| LayoutTemplateError::Template { name, error })
 }
 
 #[cfg(test)]

@@ -19,6 +19,14 @@ fn kneel_to_prone_from_the_opensim_layout() {
     .unwrap();
     let template = template_from_layout(&layout).unwrap();
     assert!(template.is_model() && template.marker_count() == 62);
+    // The knees turn about one axis (knee_angle): hinges, from the layout's degrees of freedom.
+    let body = template.body().unwrap();
+    for shank in ["RSHPA", "LSHPA"] {
+        let marker = template.names().iter().position(|n| n.label == shank).unwrap();
+        let (segment, _) = body.member[marker].unwrap();
+        let knee = body.joints.iter().find(|j| j.child == segment).unwrap();
+        assert!(knee.hinge_axis.is_some_and(|a| a.z.abs() > 0.99), "{shank}: {knee:?}");
+    }
     let take = locap_io::c3d::read_path(&dir.join("KneeltoProne01.c3d")).unwrap().to_take().unwrap();
     let config = LabelBenchConfig {
         frame_rates_hz: vec![240.0],

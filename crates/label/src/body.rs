@@ -77,6 +77,10 @@ pub struct Joint {
     pub child_mm: Vec3,
     /// How far the two placements of the centre may differ (mm).
     pub tolerance_mm: f64,
+    /// For a hinge (one rotation between the two segments, as a model's skeleton says), its
+    /// axis, the same unit vector in both segments' frames (a model's segment frames agree at
+    /// its rest pose); `None` where the joint turns about more axes or nothing says.
+    pub hinge_axis: Option<Vec3>,
 }
 
 /// A marker placed by a segment it does not belong to.
@@ -408,7 +412,14 @@ fn joint_tree(segments: &[Segment], poses: &[Vec<Option<RigidTransform>>]) -> Ve
             in_tree[c] = true;
             let (pa, ca, _) = centre[p * n + c].expect("chosen above");
             // Three times the misfit, plus room for poses the template never showed.
-            joints.push(Joint { parent: p, child: c, parent_mm: pa, child_mm: ca, tolerance_mm: 3.0 * rms + 15.0 });
+            joints.push(Joint {
+                parent: p,
+                child: c,
+                parent_mm: pa,
+                child_mm: ca,
+                tolerance_mm: 3.0 * rms + 15.0,
+                hinge_axis: None,
+            });
         }
     }
     joints

@@ -10,7 +10,9 @@
 //!   pose's (in the rest frame, about their centroid);
 //! - *joints*: a segment joins the nearest ancestor bone that is a segment, at the skeleton
 //!   joint where the path between them leaves that ancestor (a foot joins its shank at the
-//!   ankle, through a talus without markers);
+//!   ankle, through a talus without markers); where the skeleton's joints on the way turn
+//!   about one axis in all (a knee), the joint is a hinge about it
+//!   ([`Template::from_model_with_axes`]);
 //! - *attached markers*: a marker on a bone with fewer than three markers (a hand's single
 //!   marker) rides on the nearest ancestor segment;
 //! - *rigid edges*: each marker's neighbours on its own bone first, nearest first, then the
@@ -72,6 +74,22 @@ impl Template {
     /// skeleton, a position that is not finite, two markers of one name, or no bone with
     /// three markers.
     pub fn from_model(skeleton: &Skeleton, markers: &[ModelMarker]) -> Result<Template, LabelError> {
+        Template::from_model_with_axes(skeleton, markers, &[])
+    }
+
+    /// [`Template::from_model`] for a skeleton whose joints' rotation axes are known:
+    /// `axes[j]` the axes joint `j` turns about (in its frame at rest; empty for a fixed
+    /// joint, `None` or missing where not known). A joint between two segments that turns
+    /// about one axis in all (a knee, an elbow) is a hinge ([`crate::body::Joint::hinge_axis`]),
+    /// which tells a marker plate from the same plate turned over.
+    ///
+    /// # Errors
+    /// As [`Template::from_model`].
+    pub fn from_model_with_axes(
+        skeleton: &Skeleton,
+        markers: &[ModelMarker],
+        axes: &[Option<Vec<Vec3>>],
+    ) -> Result<Template, LabelError> {
         let bad = |what: String| Err(LabelError::Template(what));
         if markers.len() < 3 {
             return bad(format!("the model has {} markers; at least 3 are needed", markers.len()));
@@ -88,7 +106,7 @@ impl Template {
                 return bad(format!("marker {} appears twice in the model", m.name));
             }
         }
-        let body = model_body(skeleton, markers)
+        let body = model_body(skeleton, markers, axes)
             .ok_or_else(|| LabelError::Template("no bone of the model carries three markers".into()))?;
         let edges = model_edges(markers, &body);
         let names = markers.iter().map(|m| m.name.clone()).collect();
@@ -102,7 +120,7 @@ fn tolerance(distance_mm: f64) -> f64 {
     NOISE_MM + PLACEMENT_MM + SUBJECT_SCALE_SLACK * distance_mm
 }
 
-fn model_body(skeleton: &Skeleton, markers: &[ModelMarker]) -> Option<Body> {
+fn model_body(skeleton: &Skeleton, markers: &[ModelMarker], axes: &[Option<Vec<Vec3>>]) -> Option<Body> {
     let rest = forward_kinematics(skeleton, &vec![Quat::identity(); skeleton.len()], Vec3::zeros());
     let joints = skeleton.joints();
     // Bones with three markers or more are segments.
@@ -143,7 +161,34 @@ fn model_body(skeleton: &Skeleton, markers: &[ModelMarker]) -> Option<Body> {
         // Both ends may be off by the subject's scale: the centre from the parent's side and
         // from the child's.
         let tolerance_mm = tolerance((centre - pc).norm() + (centre - cc).norm());
-        body_joints.push(Joint { parent, child, parent_mm: centre - pc, child_mm: centre - cc, tolerance_mm });
+        // The rotations between the two bones: those of every joint from the child's bone up
+        // to the one just below the parent's. One axis in all makes a hinge.
+        let mut turns: Option<Vec<Vec3>> = Some(Vec::new());
+        let mut at = j;
+        loop {
+            match (turns.as_mut(), axes.get(at).cloned().flatten()) {
+                (Some(t), Some(a)) => t.extend(a),
+                _ => turns = None,
+            }
+            if at == below {
+                break;
+            }
+            // Cannot fail: `below` is an ancestor of `j`.
+            let Some(up) = joints[at].parent else { break };
+            at = up;
+        }
+        let hinge_axis = match turns.as_deref() {
+            Some([axis]) if axis.norm() > 0.0 => Some(axis.normalize()),
+            _ => None,
+        };
+        body_joints.push(Joint {
+            parent,
+            child,
+            parent_mm: centre - pc,
+            child_mm: centre - cc,
+            tolerance_mm,
+            hinge_axis,
+        });
     }
     let mut member = vec![None; markers.len()];
     for (s, seg) in segments.iter().enumerate() {
@@ -254,6 +299,26 @@ mod tests {
         assert_eq!(e.len(), RANKED_NEIGHBOURS);
         assert!(e[..2].iter().all(|e| e.neighbour <= 2 && e.std_mm <= MAX_RIGID_STD_MM));
         assert!(e[2..].iter().all(|e| e.std_mm == LOOSE_STD_MM));
+    }
+
+    #[test]
+    fn one_axis_between_two_segments_makes_a_hinge() {
+        let (skeleton, markers) = leg();
+        let z = Vec3::new(0.0, 0.0, 2.0);
+        let hinges = |axes: &[Option<Vec<Vec3>>]| -> Vec<Option<Vec3>> {
+            let t = Template::from_model_with_axes(&skeleton, &markers, axes).unwrap();
+            t.body().unwrap().joints.iter().map(|j| j.hinge_axis).collect()
+        };
+        // Hip: three axes. Knee (the link's joint) one, the ankle fixed: the foot hinges on the
+        // thigh about the knee's axis, made a unit vector.
+        let axes = vec![None, Some(vec![Vec3::x(), Vec3::y(), Vec3::z()]), Some(vec![z]), Some(vec![])];
+        assert_eq!(hinges(&axes), vec![None, Some(Vec3::z())]);
+        // An ankle that turns too: two axes between thigh and foot, no hinge.
+        let two = vec![None, None, Some(vec![z]), Some(vec![Vec3::x()])];
+        assert_eq!(hinges(&two), vec![None, None]);
+        // Nothing known: no hinge, as from_model.
+        assert_eq!(hinges(&[]), vec![None, None]);
+        assert_eq!(Template::from_model(&skeleton, &markers).unwrap().body().unwrap().joints[1].hinge_axis, None);
     }
 
     #[test]

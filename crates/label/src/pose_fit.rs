@@ -12,7 +12,10 @@
 //!    dynamic programming: a joint costs the distance between its centre as placed by the
 //!    parent and as placed by the child, in its tolerance, squared and truncated; two
 //!    segments on one joint may not share a point. Left and right limbs look alike one by
-//!    one; their joints tell them apart.
+//!    one; their joints tell them apart. A hinge of a model's skeleton (a knee, an elbow)
+//!    also costs the cap when the two placements turn its axis around: a rectangular plate
+//!    turned over about its long axis keeps every distance and nearly its joint centres, but
+//!    not the way its hinge points.
 //! 3. *Sure or not*: min-marginals of the same programme say, per segment, how much worse the
 //!    best configuration with another placement of it (one giving under half of its markers
 //!    the same points, or none) would be. A segment is sure when that margin is at least [`MIN_MARGIN`]
@@ -271,7 +274,13 @@ fn joint_cost(joint: &crate::body::Joint, a: &Candidate, b: &Candidate) -> f64 {
     let (Some(pa), Some(pb)) = (&a.pose, &b.pose) else { return 0.0 };
     let d = (pa.apply(&joint.parent_mm) - pb.apply(&joint.child_mm)).norm() / joint.tolerance_mm;
     let shared = a.points.iter().flatten().filter(|p| b.points.contains(&Some(**p))).count();
-    (d * d).min(JOINT_CAP) + SHARED_POINT_COST * shared as f64
+    // A hinge keeps its axis: placed by the two segments, the axis points the same way, up
+    // to how differently the plates sit on their bones. Turned past a right angle, one of
+    // the placements is a plate turned over on its own symmetry (a rectangle's front and
+    // back markers swapped), which its shape and the joint's centre cannot tell apart.
+    let reversed = joint.hinge_axis.is_some_and(|axis| (pa.rotation * axis).dot(&(pb.rotation * axis)) < 0.0);
+    let cost = if reversed { JOINT_CAP } else { (d * d).min(JOINT_CAP) };
+    cost + SHARED_POINT_COST * shared as f64
 }
 
 /// The best candidate of every segment (dynamic programming along the joint forest), or
@@ -398,6 +407,35 @@ mod tests {
         }
         assert_eq!(fit.sure_markers, 9);
         assert!(fit.rms_mm < 1.0);
+    }
+
+    #[test]
+    fn a_hinge_turned_over_costs_the_cap() {
+        let joint = crate::body::Joint {
+            parent: 0,
+            child: 1,
+            parent_mm: Vec3::new(0.0, -200.0, 0.0),
+            child_mm: Vec3::new(0.0, 200.0, 0.0),
+            tolerance_mm: 50.0,
+            hinge_axis: Some(Vec3::z()),
+        };
+        let at = |rotation: Rotation3<f64>, translation: Vec3| Candidate {
+            pose: Some(RigidTransform { rotation, translation }),
+            points: vec![],
+            cost: 0.0,
+        };
+        let parent = at(Rotation3::identity(), Vec3::zeros());
+        // Bent 100 degrees about the hinge, the centre where the parent puts it: free.
+        let bend = Rotation3::from_euler_angles(0.0, 0.0, 100f64.to_radians());
+        let bent = at(bend, Vec3::new(0.0, -200.0, 0.0) - bend * Vec3::new(0.0, 200.0, 0.0));
+        assert!(joint_cost(&joint, &parent, &bent) < 1e-9);
+        // The same child turned over about its long axis (a plate's front and back swapped):
+        // the centre stays, the axis points the other way.
+        let over = bend * Rotation3::from_euler_angles(0.0, std::f64::consts::PI, 0.0);
+        let turned = at(over, Vec3::new(0.0, -200.0, 0.0) - over * Vec3::new(0.0, 200.0, 0.0));
+        assert!((joint_cost(&joint, &parent, &turned) - JOINT_CAP).abs() < 1e-9);
+        let no_hinge = crate::body::Joint { hinge_axis: None, ..joint };
+        assert!(joint_cost(&no_hinge, &parent, &turned) < 1e-9);
     }
 
     #[test]
