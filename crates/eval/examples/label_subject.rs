@@ -2,7 +2,8 @@
 //! --example label_subject -- TEMPLATE.c3d RAW.c3d...` labels each raw take with defaults and
 //! prints the share of marker samples labeled and, of the labeled samples checked, the share
 //! within 20 mm of their rigid edges' median lengths over the labeled take (the issue's
-//! check), with how labeling started and its time.
+//! check), with how labeling started and its time, and the hinges of the template and of the
+//! template calibrated on each take.
 
 use locap_label::{LabelConfig, Template, label_take};
 
@@ -11,6 +12,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let (template_path, raws) = args.split_first().ok_or("usage: label_subject TEMPLATE.c3d RAW.c3d...")?;
     let template = locap_io::c3d::read_path(std::path::Path::new(template_path))?.to_take()?;
     let template = Template::from_take(&template, None)?;
+    if let Some(body) = template.body() {
+        let names = |s: usize| -> String {
+            body.segments[s].markers.iter().map(|&i| template.names()[i].label.as_str()).collect::<Vec<_>>().join(" ")
+        };
+        for j in body.joints.iter().filter(|j| j.hinge.is_some()) {
+            println!("template hinge between {} and {}", names(j.parent), names(j.child));
+        }
+    }
     for path in raws {
         let raw = locap_io::c3d::read_path(std::path::Path::new(path))?.to_take()?;
         let started = std::time::Instant::now();
@@ -46,9 +55,19 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             .collect();
         println!("  labeled in under half the frames: {}", low.join(", "));
         if let Some(body) = own.body() {
-            for seg in &body.segments {
-                let names: Vec<&str> = seg.markers.iter().map(|&i| template.names()[i].label.as_str()).collect();
-                println!("  segment {}", names.join(" "));
+            let names = |s: usize| -> String {
+                body.segments[s]
+                    .markers
+                    .iter()
+                    .map(|&i| template.names()[i].label.as_str())
+                    .collect::<Vec<_>>()
+                    .join(" ")
+            };
+            for s in 0..body.segments.len() {
+                println!("  segment {}", names(s));
+            }
+            for j in body.joints.iter().filter(|j| j.hinge.is_some()) {
+                println!("  hinge between {} and {}", names(j.parent), names(j.child));
             }
         }
     }

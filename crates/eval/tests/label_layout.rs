@@ -25,11 +25,11 @@ fn kneel_to_prone_from_the_opensim_layout() {
         let marker = template.names().iter().position(|n| n.label == shank).unwrap();
         let (segment, _) = body.member[marker].unwrap();
         let knee = body.joints.iter().find(|j| j.child == segment).unwrap();
-        assert!(knee.hinge_axis.is_some_and(|a| a.z.abs() > 0.99), "{shank}: {knee:?}");
+        assert!(knee.hinge.is_some_and(|h| h.child_axis.z.abs() > 0.99), "{shank}: {knee:?}");
     }
     let take = locap_io::c3d::read_path(&dir.join("KneeltoProne01.c3d")).unwrap().to_take().unwrap();
     let config = LabelBenchConfig {
-        frame_rates_hz: vec![240.0],
+        frame_rates_hz: vec![240.0, 30.0],
         ghosts: vec![GhostCount::Fixed(0)],
         drop: None,
         methods: vec![LabelConfig::default()],
@@ -38,8 +38,16 @@ fn kneel_to_prone_from_the_opensim_layout() {
         ..LabelBenchConfig::default()
     };
     let report = run(&[("KneeltoProne01".into(), take)], &config).unwrap();
-    let row = report.rows.iter().find(|r| r.template == LAYOUT).expect("a layout row");
-    assert_eq!(row.score.failed_fits, 0, "{}", report.table());
+    let row = |fps: f64| {
+        let row = report.rows.iter().find(|r| r.template == LAYOUT && r.frame_rate_hz == fps).expect("a layout row");
+        assert_eq!(row.score.failed_fits, 0, "{}", report.table());
+        row
+    };
     // Measured 91.9% right, 0% wrong (docs/benchmarks.md): the left shank is never labeled.
-    assert!(row.accuracy >= 90.0 && row.wrong_percent <= 0.5, "{}", report.table());
+    let full = row(240.0);
+    assert!(full.accuracy >= 90.0 && full.wrong_percent <= 0.5, "{}", report.table());
+    // Measured 96.8% right, 0% wrong: the hands alone missed (the issue asks >= 95% at 30 fps).
+    // Before the segment check against the layout's shape, LFAPP and LULN stayed exchanged.
+    let low = row(30.0);
+    assert!(low.accuracy >= 95.0 && low.wrong_percent <= 0.5, "{}", report.table());
 }

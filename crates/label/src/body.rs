@@ -77,10 +77,31 @@ pub struct Joint {
     pub child_mm: Vec3,
     /// How far the two placements of the centre may differ (mm).
     pub tolerance_mm: f64,
-    /// For a hinge (one rotation between the two segments, as a model's skeleton says), its
-    /// axis, the same unit vector in both segments' frames (a model's segment frames agree at
-    /// its rest pose); `None` where the joint turns about more axes or nothing says.
-    pub hinge_axis: Option<Vec3>,
+    /// For a hinge (one rotation between the two segments: a knee, an elbow), its axis;
+    /// `None` where the joint turns about more axes or nothing says.
+    pub hinge: Option<Hinge>,
+}
+
+/// A hinge's axis: the same line as seen in each of its two segments' frames (unit vectors).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Hinge {
+    /// The axis in the parent's frame.
+    pub parent_axis: Vec3,
+    /// The axis in the child's frame.
+    pub child_axis: Vec3,
+}
+
+impl Hinge {
+    /// A hinge whose axis is the same vector in both frames (a model's segment frames agree
+    /// at its rest pose).
+    pub fn shared(axis: Vec3) -> Hinge {
+        Hinge { parent_axis: axis, child_axis: axis }
+    }
+
+    /// Whether the two placements turn the axis around (more than a right angle apart).
+    pub fn reversed(&self, parent: &RigidTransform, child: &RigidTransform) -> bool {
+        (parent.rotation * self.parent_axis).dot(&(child.rotation * self.child_axis)) < 0.0
+    }
 }
 
 /// A marker placed by a segment it does not belong to.
@@ -418,11 +439,70 @@ fn joint_tree(segments: &[Segment], poses: &[Vec<Option<RigidTransform>>]) -> Ve
                 parent_mm: pa,
                 child_mm: ca,
                 tolerance_mm: 3.0 * rms + 15.0,
-                hinge_axis: None,
+                hinge: learn_hinge(&poses[p], &poses[c]),
             });
         }
     }
     joints
+}
+
+/// A hinge is learned where the template bends a joint by at least this (degrees, between
+/// the 5th and 95th percentile of its turn about the axis): below it every axis stays put and
+/// the one found means nothing.
+const MIN_HINGE_RANGE_DEG: f64 = 30.0;
+
+/// ... and where, in 95% of the template's frames, the axis as placed by the child stays
+/// within this of where the parent puts it (degrees). Knees and elbows stay within 10-20
+/// (soft tissue, the knee's screw-home turn); a hip or shoulder that only flexes in the
+/// template would pass too, and the hinge's cost only refuses an axis turned past a right
+/// angle, which such a joint does not do either.
+const MAX_HINGE_SPREAD_DEG: f64 = 25.0;
+
+/// The hinge between two segments, from their poses over the template: the child-frame
+/// vector `u` that the relative rotations `R_f = Rp_f^T Rc_f` map to the most constant
+/// parent-frame vector (the top right singular vector of the mean of the `R_f`: `sum |R_f u
+/// - mean|^2 = N (1 - |M u|^2)`), kept when the joint turns about it by at least
+/// [`MIN_HINGE_RANGE_DEG`] and keeps it within [`MAX_HINGE_SPREAD_DEG`].
+fn learn_hinge(parent: &[Option<RigidTransform>], child: &[Option<RigidTransform>]) -> Option<Hinge> {
+    let relative: Vec<Matrix3<f64>> = parent
+        .iter()
+        .zip(child)
+        .filter_map(|(p, c)| Some(*(p.as_ref()?.rotation.inverse() * c.as_ref()?.rotation).matrix()))
+        .collect();
+    if relative.len() < 10 {
+        return None;
+    }
+    let mean = relative.iter().sum::<Matrix3<f64>>() / relative.len() as f64;
+    let svd = mean.svd(true, true);
+    let v_t = svd.v_t?;
+    let top = (0..3).max_by(|&a, &b| svd.singular_values[a].total_cmp(&svd.singular_values[b]))?;
+    let child_axis: Vec3 = v_t.row(top).transpose();
+    let parent_axis = (mean * child_axis).try_normalize(1e-9)?;
+    let percentile = |mut v: Vec<f64>, q: f64| {
+        v.sort_by(f64::total_cmp);
+        v[((v.len() - 1) as f64 * q).round() as usize]
+    };
+    let spread = relative.iter().map(|r| (r * child_axis).dot(&parent_axis).clamp(-1.0, 1.0).acos().to_degrees());
+    if percentile(spread.collect(), 0.95) > MAX_HINGE_SPREAD_DEG {
+        return None;
+    }
+    // The turn about the axis: a child-frame vector across it, seen in the parent's frame,
+    // measured around the parent's axis from where the first frame puts it.
+    let across = child_axis.cross(&if child_axis.x.abs() < 0.9 { Vec3::x() } else { Vec3::y() }).normalize();
+    let flat = |r: &Matrix3<f64>| {
+        let w = r * across;
+        w - parent_axis * w.dot(&parent_axis)
+    };
+    let reference = flat(&relative[0]);
+    let angles: Vec<f64> = relative
+        .iter()
+        .map(|r| {
+            let w = flat(r);
+            parent_axis.dot(&reference.cross(&w)).atan2(reference.dot(&w)).to_degrees()
+        })
+        .collect();
+    let range = percentile(angles.clone(), 0.95) - percentile(angles, 0.05);
+    (range >= MIN_HINGE_RANGE_DEG).then_some(Hinge { parent_axis, child_axis })
 }
 
 /// Attaches marker `i` to the segment in whose frame it moves least.
@@ -458,6 +538,12 @@ pub(crate) mod tests {
     /// Two rigid 4-marker segments joined by a hinge at the origin of both, the second
     /// swinging through 90 degrees, and a fifth marker on the first one only loosely.
     pub(crate) fn hinge_take(frames: usize) -> Take {
+        jointed_take(frames, |s| Rotation3::from_euler_angles(1.5 * s, 0.0, 0.0))
+    }
+
+    /// The hinge take's two segments with the second turned by `knee(s)`, `s` from 0 to 1
+    /// over the take.
+    fn jointed_take(frames: usize, knee: impl Fn(f64) -> Rotation3<f64>) -> Take {
         let upper = [[0.0, 0.0, 60.0], [80.0, 0.0, 200.0], [-50.0, 40.0, 320.0], [0.0, -60.0, 150.0]];
         let lower = [[0.0, 30.0, -80.0], [70.0, 0.0, -220.0], [-40.0, -50.0, -300.0], [20.0, 60.0, -150.0]];
         let names: Vec<MarkerName> = (0..9).map(|i| MarkerName::parse(&format!("M{i}"))).collect();
@@ -465,7 +551,7 @@ pub(crate) mod tests {
         for f in 0..frames {
             let s = f as f64 / frames as f64;
             let body = Rotation3::from_euler_angles(0.0, 0.0, 2.0 * s);
-            let knee = Rotation3::from_euler_angles(1.5 * s, 0.0, 0.0);
+            let knee = knee(s);
             let origin = Vec3::new(500.0 * s, 0.0, 1000.0);
             for p in upper {
                 samples.push(Some(origin + body * Vec3::from(p)));
@@ -505,6 +591,28 @@ pub(crate) mod tests {
         assert_eq!(body.attached[0].marker, 8);
         assert!(body.attached[0].tolerance_mm < 80.0);
         assert!(body.segments.iter().all(|s| s.tolerance_mm.iter().all(|&r| r < 10.0)));
+    }
+
+    #[test]
+    fn a_joint_that_turns_about_one_axis_is_a_hinge() {
+        let take = hinge_take(200);
+        let body = learn(&take);
+        let hinge = body.joints[0].hinge.expect("the knee turns about x only");
+        let (p, c) = (body.joints[0].parent, body.joints[0].child);
+        for f in (0..200).step_by(20) {
+            let place = |s: usize| fit_segment(&take, f, &body.segments[s]).unwrap().0;
+            let (tp, tc) = (place(p), place(c));
+            // Both placements put the axis on the body's x axis, pointing the same way.
+            let body_x = Rotation3::from_euler_angles(0.0, 0.0, 2.0 * f as f64 / 200.0) * Vec3::x();
+            let (ap, ac) = (tp.rotation * hinge.parent_axis, tc.rotation * hinge.child_axis);
+            assert!(ap.dot(&ac) > 0.999 && ap.dot(&body_x).abs() > 0.999, "frame {f}: {ap:?} {ac:?}");
+            assert!(!hinge.reversed(&tp, &tc));
+        }
+        // A ball joint (turning about x and y) and a joint the take barely bends: no hinge.
+        let ball = jointed_take(200, |s| Rotation3::from_euler_angles(1.5 * s, (9.0 * s).sin(), 0.0));
+        assert_eq!(learn(&ball).joints[0].hinge, None);
+        let still = jointed_take(200, |s| Rotation3::from_euler_angles(0.3 * s, 0.0, 0.0));
+        assert_eq!(learn(&still).joints[0].hinge, None);
     }
 
     #[test]

@@ -42,6 +42,7 @@ pub mod labeler;
 pub mod model;
 pub mod pose_fit;
 pub mod reacquire;
+pub mod segment_swaps;
 pub mod start;
 pub mod subject;
 pub mod template;
@@ -102,6 +103,11 @@ impl Labels {
             point.extend((0..markers).map(|m| frame.get(m).copied().flatten().map_or(NONE, |p| p as u32)));
         }
         Labels { markers, point }
+    }
+
+    /// Exchanges the points of markers `a` and `b` in frame `frame`.
+    pub fn exchange(&mut self, frame: usize, a: usize, b: usize) {
+        self.point.swap(frame * self.markers + a, frame * self.markers + b);
     }
 
     /// Number of frames.

@@ -27,7 +27,7 @@
 //! the take is labeled with again.
 
 use crate::LabelError;
-use crate::body::{Attached, Body, Joint, NOISE_MM, Segment};
+use crate::body::{Attached, Body, Hinge, Joint, NOISE_MM, Segment};
 use crate::template::{Edge, RANKED_NEIGHBOURS, Template};
 use locap_core::skeleton::forward_kinematics;
 use locap_core::{MarkerName, Quat, Skeleton, Vec3};
@@ -80,7 +80,7 @@ impl Template {
     /// [`Template::from_model`] for a skeleton whose joints' rotation axes are known:
     /// `axes[j]` the axes joint `j` turns about (in its frame at rest; empty for a fixed
     /// joint, `None` or missing where not known). A joint between two segments that turns
-    /// about one axis in all (a knee, an elbow) is a hinge ([`crate::body::Joint::hinge_axis`]),
+    /// about one axis in all (a knee, an elbow) is a hinge ([`crate::body::Joint::hinge`]),
     /// which tells a marker plate from the same plate turned over.
     ///
     /// # Errors
@@ -177,18 +177,11 @@ fn model_body(skeleton: &Skeleton, markers: &[ModelMarker], axes: &[Option<Vec<V
             let Some(up) = joints[at].parent else { break };
             at = up;
         }
-        let hinge_axis = match turns.as_deref() {
-            Some([axis]) if axis.norm() > 0.0 => Some(axis.normalize()),
+        let hinge = match turns.as_deref() {
+            Some([axis]) if axis.norm() > 0.0 => Some(Hinge::shared(axis.normalize())),
             _ => None,
         };
-        body_joints.push(Joint {
-            parent,
-            child,
-            parent_mm: centre - pc,
-            child_mm: centre - cc,
-            tolerance_mm,
-            hinge_axis,
-        });
+        body_joints.push(Joint { parent, child, parent_mm: centre - pc, child_mm: centre - cc, tolerance_mm, hinge });
     }
     let mut member = vec![None; markers.len()];
     for (s, seg) in segments.iter().enumerate() {
@@ -307,7 +300,7 @@ mod tests {
         let z = Vec3::new(0.0, 0.0, 2.0);
         let hinges = |axes: &[Option<Vec<Vec3>>]| -> Vec<Option<Vec3>> {
             let t = Template::from_model_with_axes(&skeleton, &markers, axes).unwrap();
-            t.body().unwrap().joints.iter().map(|j| j.hinge_axis).collect()
+            t.body().unwrap().joints.iter().map(|j| j.hinge.map(|h| h.child_axis)).collect()
         };
         // Hip: three axes. Knee (the link's joint) one, the ankle fixed: the foot hinges on the
         // thigh about the knee's axis, made a unit vector.
@@ -318,7 +311,7 @@ mod tests {
         assert_eq!(hinges(&two), vec![None, None]);
         // Nothing known: no hinge, as from_model.
         assert_eq!(hinges(&[]), vec![None, None]);
-        assert_eq!(Template::from_model(&skeleton, &markers).unwrap().body().unwrap().joints[1].hinge_axis, None);
+        assert_eq!(Template::from_model(&skeleton, &markers).unwrap().body().unwrap().joints[1].hinge, None);
     }
 
     #[test]

@@ -73,6 +73,10 @@ pub struct PoseFit {
     pub sure_markers: usize,
     /// Root mean square distance of the labeled points from where the fit expects them (mm).
     pub rms_mm: f64,
+    /// Per segment placed by the best configuration, how much more the best configuration
+    /// with another placement of it costs (sure from [`MIN_MARGIN`]); `None` where the best
+    /// leaves it unplaced or it is an anchor. Says why a fit is not sure of a segment.
+    pub margins: Vec<Option<f64>>,
 }
 
 impl PoseFit {
@@ -111,7 +115,8 @@ pub fn fit_pose(
             }
         })
         .collect();
-    let chosen = choose(body, &candidates);
+    let (chosen, margins) = choose(body, &candidates);
+    let margins = (0..n_seg).map(|s| if anchor(s).is_some() { None } else { margins[s] }).collect();
 
     let poses: Vec<Option<RigidTransform>> = (0..n_seg)
         .map(|s| chosen[s].and_then(|c| if anchor(s).is_some() { None } else { candidates[s][c].pose }))
@@ -157,6 +162,7 @@ pub fn fit_pose(
         sure_markers: placed.iter().flatten().count(),
         poses,
         rms_mm: (sum2 / labeled.max(1) as f64).sqrt(),
+        margins,
     }
 }
 
@@ -278,14 +284,14 @@ fn joint_cost(joint: &crate::body::Joint, a: &Candidate, b: &Candidate) -> f64 {
     // to how differently the plates sit on their bones. Turned past a right angle, one of
     // the placements is a plate turned over on its own symmetry (a rectangle's front and
     // back markers swapped), which its shape and the joint's centre cannot tell apart.
-    let reversed = joint.hinge_axis.is_some_and(|axis| (pa.rotation * axis).dot(&(pb.rotation * axis)) < 0.0);
+    let reversed = joint.hinge.is_some_and(|h| h.reversed(pa, pb));
     let cost = if reversed { JOINT_CAP } else { (d * d).min(JOINT_CAP) };
     cost + SHARED_POINT_COST * shared as f64
 }
 
 /// The best candidate of every segment (dynamic programming along the joint forest), or
-/// `None` for a segment left unplaced or unsure.
-fn choose(body: &Body, candidates: &[Vec<Candidate>]) -> Vec<Option<usize>> {
+/// `None` for a segment left unplaced or unsure; and each placed segment's margin.
+fn choose(body: &Body, candidates: &[Vec<Candidate>]) -> (Vec<Option<usize>>, Vec<Option<f64>>) {
     let n = candidates.len();
     let mut parent_joint: Vec<Option<usize>> = vec![None; n];
     let mut children: Vec<Vec<usize>> = vec![Vec::new(); n];
@@ -340,7 +346,7 @@ fn choose(body: &Body, candidates: &[Vec<Candidate>]) -> Vec<Option<usize>> {
         best[joint.child] = argmin(&cost);
     }
     // Sure: every placement sharing under half of the best one's points costs MIN_MARGIN more.
-    (0..n)
+    let margins: Vec<Option<f64>> = (0..n)
         .map(|s| {
             let c = &candidates[s][best[s]];
             c.pose?;
@@ -357,9 +363,11 @@ fn choose(body: &Body, candidates: &[Vec<Candidate>]) -> Vec<Option<usize>> {
                 })
                 .map(marginal)
                 .fold(f64::INFINITY, f64::min);
-            (rival - own >= MIN_MARGIN).then_some(best[s])
+            Some(rival - own)
         })
-        .collect()
+        .collect();
+    let chosen = (0..n).map(|s| margins[s].is_some_and(|m| m >= MIN_MARGIN).then_some(best[s])).collect();
+    (chosen, margins)
 }
 
 #[cfg(test)]
@@ -417,7 +425,7 @@ mod tests {
             parent_mm: Vec3::new(0.0, -200.0, 0.0),
             child_mm: Vec3::new(0.0, 200.0, 0.0),
             tolerance_mm: 50.0,
-            hinge_axis: Some(Vec3::z()),
+            hinge: Some(crate::body::Hinge::shared(Vec3::z())),
         };
         let at = |rotation: Rotation3<f64>, translation: Vec3| Candidate {
             pose: Some(RigidTransform { rotation, translation }),
@@ -434,7 +442,7 @@ mod tests {
         let over = bend * Rotation3::from_euler_angles(0.0, std::f64::consts::PI, 0.0);
         let turned = at(over, Vec3::new(0.0, -200.0, 0.0) - over * Vec3::new(0.0, 200.0, 0.0));
         assert!((joint_cost(&joint, &parent, &turned) - JOINT_CAP).abs() < 1e-9);
-        let no_hinge = crate::body::Joint { hinge_axis: None, ..joint };
+        let no_hinge = crate::body::Joint { hinge: None, ..joint };
         assert!(joint_cost(&no_hinge, &parent, &turned) < 1e-9);
     }
 

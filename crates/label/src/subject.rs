@@ -20,7 +20,9 @@
 //!    and the take is labeled again from scratch with it (the loose template body placing
 //!    what the calibrated one lacks), so the first fit, tracking's edge costs and
 //!    re-acquisition use this subject's distances. Rounds repeat while more samples keep
-//!    their segments' distances, at most [`CALIBRATION_ROUNDS`] times.
+//!    their segments' distances, at most [`CALIBRATION_ROUNDS`] times. Before each
+//!    calibration, two labels of a segment that the template's shape says are exchanged are
+//!    exchanged back ([`crate::segment_swaps`]): the calibration would learn them as they are.
 //!
 //! A take whose subject the template's own body fits is labeled as before: none of this
 //! runs.
@@ -28,6 +30,7 @@
 use crate::body::Body;
 use crate::ik::MarkerModel;
 use crate::pose_fit::fit_pose;
+use crate::segment_swaps::unswap_segments;
 use crate::{
     EdgeCheck, FitConfig, FitMethod, InitialFit, LabelConfig, LabelError, Labels, PointFrames, Template, fit_start,
 };
@@ -131,6 +134,8 @@ pub fn label_calibrating(
     let first_pass = FitConfig { min_matched_fraction: FIRST_PASS_FRACTION, ..config.fit };
     let fit = two_stage_start(frames, &loose, body, loose_body, &first_pass)?;
     let mut labels = crate::run(frames, &loose, config, &fit, None)?;
+    // The calibration would learn two exchanged labels as this subject's shape.
+    unswap_segments(&mut labels, frames, body);
     let mut best: Option<(usize, Adapted)> = None;
     let mut last = fit;
     // Round 0 scores the first pass; each later one labels the take again with the template
@@ -151,6 +156,7 @@ pub fn label_calibrating(
         let Some(own_body) = calibrated.body() else { break };
         let Ok(fit) = two_stage_start(frames, &calibrated, own_body, loose_body, &config.fit) else { break };
         labels = crate::run(frames, &calibrated, config, &fit, pose_model.clone())?;
+        unswap_segments(&mut labels, frames, body);
         last = fit;
     }
     // Cannot be none: round 0 sets it.

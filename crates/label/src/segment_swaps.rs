@@ -1,0 +1,165 @@
+//! Two markers of one segment labeled the other way round, found against the template's
+//! shape.
+//!
+//! Labeling another subject calibrates the template on the take's own labels
+//! ([`crate::subject`]): whatever the first pass labeled becomes this subject's shape. Two
+//! markers of one segment that the first pass exchanged (a plate marker and the wrist
+//! landmark beside it, where the generic shape leaves room for both) stay exchanged through
+//! every round, since the calibrated shape then has them exchanged too. The template's own
+//! shape does not: with the two labels exchanged back, its segment fits the frame's points
+//! by whole tolerances better. So, per segment and frame with at least [`MIN_CHECKED`] of
+//! its markers labeled, every exchange of two of them is scored against the template's
+//! shape (rigid fit, residuals in the markers' tolerances); a frame votes for the exchange
+//! that lowers the cost by at least [`MIN_GAIN`] and halves it, and the exchange is made
+//! where the votes within [`VOTE_WINDOW_S`] say so, so that one noisy frame neither makes
+//! nor blocks it.
+
+use crate::body::Body;
+use crate::{Labels, PointFrames};
+use locap_clean::procrustes::align;
+use locap_core::Vec3;
+
+/// A frame's segment is checked when at least this many of its markers are labeled: three
+/// points fit any triangle of about the right size, exchanged or not.
+pub const MIN_CHECKED: usize = 4;
+
+/// An exchange must lower the segment's cost (squared residuals in tolerances) by at least
+/// this: two markers' worth.
+pub const MIN_GAIN: f64 = 2.0;
+
+/// Votes are counted over this many seconds on each side of a frame.
+pub const VOTE_WINDOW_S: f64 = 0.25;
+
+/// Exchanges, in `labels` of `frames`, the labels of two markers of a segment of `body` (the
+/// template's) where its shape says they are exchanged (module docs). Returns how many
+/// frames changed.
+pub fn unswap_segments(labels: &mut Labels, frames: &PointFrames, body: &Body) -> usize {
+    let n = labels.frame_count().min(frames.frame_count());
+    let window = (VOTE_WINDOW_S * frames.frame_rate_hz()).round().max(1.0) as usize;
+    let mut changed = vec![false; n];
+    for seg in &body.segments {
+        let k = seg.markers.len();
+        if k < MIN_CHECKED {
+            continue;
+        }
+        let pairs: Vec<(usize, usize)> = (0..k).flat_map(|a| (a + 1..k).map(move |b| (a, b))).collect();
+        // Per frame: the pair this frame votes to exchange, or None (keep), or not checked.
+        let votes: Vec<Option<Option<usize>>> = (0..n).map(|f| vote(labels, frames, seg, f, &pairs)).collect();
+        for (p, &(a, b)) in pairs.iter().enumerate() {
+            if !votes.contains(&Some(Some(p))) {
+                continue;
+            }
+            // Running tally of (for, against) over the window.
+            for (f, changed) in changed.iter_mut().enumerate() {
+                let (lo, hi) = (f.saturating_sub(window), (f + window + 1).min(n));
+                let (mut yes, mut no) = (0usize, 0usize);
+                for v in votes[lo..hi].iter().flatten() {
+                    if *v == Some(p) {
+                        yes += 1;
+                    } else {
+                        no += 1;
+                    }
+                }
+                if yes > no {
+                    labels.exchange(f, seg.markers[a], seg.markers[b]);
+                    *changed = true;
+                }
+            }
+        }
+    }
+    changed.iter().filter(|&&c| c).count()
+}
+
+/// Frame `f`'s vote for segment `seg`: `None` when too few of its markers are labeled, else
+/// the pair (index into `pairs`) whose exchange fits the shape best, if it gains enough.
+fn vote(
+    labels: &Labels,
+    frames: &PointFrames,
+    seg: &crate::body::Segment,
+    f: usize,
+    pairs: &[(usize, usize)],
+) -> Option<Option<usize>> {
+    let points = frames.frame(f);
+    let at: Vec<Option<Vec3>> = seg.markers.iter().map(|&i| labels.get(f, i).map(|p| points[p])).collect();
+    let labeled: Vec<usize> = (0..at.len()).filter(|&m| at[m].is_some()).collect();
+    if labeled.len() < MIN_CHECKED {
+        return None;
+    }
+    // Cost of the shape with marker m's label given by `label_of(m)`.
+    let cost = |label_of: &dyn Fn(usize) -> usize| -> Option<f64> {
+        let (from, to): (Vec<Vec3>, Vec<Vec3>) =
+            labeled.iter().map(|&m| (seg.local_mm[m], at[label_of(m)].unwrap_or_default())).unzip();
+        let t = align(&from, &to)?;
+        Some(
+            labeled
+                .iter()
+                .map(|&m| {
+                    ((t.apply(&seg.local_mm[m]) - at[label_of(m)].unwrap_or_default()).norm() / seg.tolerance_mm[m])
+                        .powi(2)
+                })
+                .sum(),
+        )
+    };
+    let own = cost(&|m| m)?;
+    let mut best: Option<(f64, usize)> = None;
+    for (p, &(a, b)) in pairs.iter().enumerate() {
+        if at[a].is_none() || at[b].is_none() {
+            continue;
+        }
+        let swap = |m: usize| {
+            if m == a {
+                b
+            } else if m == b {
+                a
+            } else {
+                m
+            }
+        };
+        let Some(c) = cost(&swap) else { continue };
+        if best.is_none_or(|(x, _)| c < x) {
+            best = Some((c, p));
+        }
+    }
+    Some(best.filter(|&(c, _)| own - c >= MIN_GAIN && c <= own / 2.0).map(|(_, p)| p))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::Template;
+    use crate::body::tests::hinge_take;
+
+    /// The hinge take's true labels: each marker's point in every frame.
+    fn truth(frames: &PointFrames, markers: usize) -> Labels {
+        let per_frame: Vec<Vec<Option<usize>>> = (0..frames.frame_count())
+            .map(|f| (0..markers).map(|m| frames.columns(f).iter().position(|&c| c as usize == m)).collect())
+            .collect();
+        Labels::from_frames(markers, &per_frame)
+    }
+
+    #[test]
+    fn exchanged_labels_are_exchanged_back_and_right_ones_kept() {
+        let take = hinge_take(200);
+        let template = Template::from_take(&take, None).unwrap();
+        let body = template.body().unwrap();
+        let frames = PointFrames::from_take(&take);
+        let right = truth(&frames, take.marker_count());
+        let mut labels = right.clone();
+        assert_eq!(unswap_segments(&mut labels, &frames, body), 0);
+        assert_eq!(labels, right);
+        // Two markers of the upper segment exchanged over half the take, and one stray frame
+        // of the lower one (a single frame against its window keeps its labels).
+        for f in 40..140 {
+            labels.exchange(f, 0, 1);
+        }
+        labels.exchange(170, 4, 6);
+        let changed = unswap_segments(&mut labels, &frames, body);
+        assert_eq!(changed, 100);
+        for f in 0..200 {
+            for m in 0..take.marker_count() {
+                let expected = if f == 170 && (m == 4 || m == 6) { right.get(f, 10 - m) } else { right.get(f, m) };
+                assert_eq!(labels.get(f, m), expected, "frame {f} marker {m}");
+            }
+        }
+    }
+}
