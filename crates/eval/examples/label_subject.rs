@@ -13,10 +13,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let template = locap_io::c3d::read_path(std::path::Path::new(template_path))?.to_take()?;
     let template = Template::from_take(&template, None)?;
     if let Some(body) = template.body() {
-        let names = |s: usize| -> String {
-            body.segments[s].markers.iter().map(|&i| template.names()[i].label.as_str()).collect::<Vec<_>>().join(" ")
-        };
         for j in body.joints.iter().filter(|j| j.hinge.is_some()) {
+            let names = |s| segment_names(body, &template, s);
             println!("template hinge between {} and {}", names(j.parent), names(j.child));
         }
     }
@@ -55,14 +53,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             .collect();
         println!("  labeled in under half the frames: {}", low.join(", "));
         if let Some(body) = own.body() {
-            let names = |s: usize| -> String {
-                body.segments[s]
-                    .markers
-                    .iter()
-                    .map(|&i| template.names()[i].label.as_str())
-                    .collect::<Vec<_>>()
-                    .join(" ")
-            };
+            let names = |s| segment_names(body, &template, s);
             for s in 0..body.segments.len() {
                 println!("  segment {}", names(s));
             }
@@ -72,4 +63,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         }
     }
     Ok(())
+}
+
+/// Segment `s`'s marker labels, separated by spaces.
+fn segment_names(body: &locap_label::body::Body, template: &Template, s: usize) -> String {
+    body.segments[s].markers.iter().map(|&i| template.names()[i].label.as_str()).collect::<Vec<_>>().join(" ")
 }

@@ -45,22 +45,18 @@ pub fn unswap_segments(labels: &mut Labels, frames: &PointFrames, body: &Body) -
         let pairs: Vec<(usize, usize)> = (0..k).flat_map(|a| (a + 1..k).map(move |b| (a, b))).collect();
         // Per frame: the pair this frame votes to exchange, or None (keep), or not checked.
         let votes: Vec<Option<Option<usize>>> = (0..n).map(|f| vote(labels, frames, seg, f, &pairs)).collect();
+        // Checked frames up to each frame (prefix sums), for the windows' tallies.
+        let checked = prefix(votes.iter().map(Option::is_some));
         for (p, &(a, b)) in pairs.iter().enumerate() {
             if !votes.contains(&Some(Some(p))) {
                 continue;
             }
-            // Running tally of (for, against) over the window.
+            let yes = prefix(votes.iter().map(|v| *v == Some(Some(p))));
             for (f, changed) in changed.iter_mut().enumerate() {
                 let (lo, hi) = (f.saturating_sub(window), (f + window + 1).min(n));
-                let (mut yes, mut no) = (0usize, 0usize);
-                for v in votes[lo..hi].iter().flatten() {
-                    if *v == Some(p) {
-                        yes += 1;
-                    } else {
-                        no += 1;
-                    }
-                }
-                if yes > no {
+                let for_it = yes[hi] - yes[lo];
+                let against = checked[hi] - checked[lo] - for_it;
+                if for_it > against {
                     labels.exchange(f, seg.markers[a], seg.markers[b]);
                     *changed = true;
                 }
@@ -68,6 +64,16 @@ pub fn unswap_segments(labels: &mut Labels, frames: &PointFrames, body: &Body) -
         }
     }
     changed.iter().filter(|&&c| c).count()
+}
+
+/// `out[i]`: how many of the first `i` flags are set.
+fn prefix(flags: impl Iterator<Item = bool>) -> Vec<usize> {
+    std::iter::once(0)
+        .chain(flags.scan(0, |count, flag| {
+            *count += usize::from(flag);
+            Some(*count)
+        }))
+        .collect()
 }
 
 /// Frame `f`'s vote for segment `seg`: `None` when too few of its markers are labeled, else
@@ -93,10 +99,8 @@ fn vote(
         Some(
             labeled
                 .iter()
-                .map(|&m| {
-                    ((t.apply(&seg.local_mm[m]) - at[label_of(m)].unwrap_or_default()).norm() / seg.tolerance_mm[m])
-                        .powi(2)
-                })
+                .zip(from.iter().zip(&to))
+                .map(|(&m, (l, q))| ((t.apply(l) - q).norm() / seg.tolerance_mm[m]).powi(2))
                 .sum(),
         )
     };
