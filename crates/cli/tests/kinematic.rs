@@ -113,16 +113,7 @@ fn a_cmu_take_solves_kinematically_close_to_cmus_own_solution() {
     let (over, wrists) = tracking(&stdout);
     assert_eq!(over, 0, "{stdout}");
     assert!(wrists.is_some_and(|w| w >= 99.0), "{stdout}");
-    let solved = locap_io::bvh::read_bvh_path(&bvh, locap_core::LengthUnit::Centimetre).unwrap();
-    // `solve` writes the animation tools' Y-up frame; CMU's AMC is in the skeleton's motion
-    // frame (lab = y_up_to_z_up(motion)): undo both turns before comparing.
-    let tools_to_motion = locap_core::units::y_up_to_z_up_rotation().inverse()
-        * locap_core::units::z_up_to_tools_y_up_rotation().inverse();
-    let solved = solved.rotated(tools_to_motion);
-    let asf = locap_io::asf_amc::read_asf_path(&data.join("cmu-asfamc/02/02.asf")).unwrap();
-    let reference = locap_io::asf_amc::read_amc_path(&data.join("cmu-asfamc/02/02_01.amc"), &asf, 120.0).unwrap();
-    let rotating = vec![true; solved.skeleton.len()];
-    let c = locap_eval::solver::compare_motions(&solved, &reference, &rotating).unwrap();
+    let c = common::bvh_against_cmu(&bvh, &data, "02", "02_01");
     eprintln!(
         "02_01 kinematic vs CMU AMC: JPE {:.1} mm, root-aligned {:.1} mm, JOE {:.2} deg",
         c.jpe_mm, c.jpe_root_aligned_mm, c.joe_deg

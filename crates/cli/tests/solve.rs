@@ -150,9 +150,7 @@ fn eval_prints_table_one() {
 fn the_second_body_model_turns_joints_closer_to_cmus_solution() {
     let Some(data) = shared_data() else { return };
     let dir = tempfile::tempdir().unwrap();
-    let asf = locap_io::asf_amc::read_asf_path(&data.join("cmu-asfamc/02/02.asf")).unwrap();
-    let reference = locap_io::asf_amc::read_amc_path(&data.join("cmu-asfamc/02/02_01.amc"), &asf, 120.0).unwrap();
-    let joe = |model: Option<&str>| {
+    let solved_against_cmu = |model: Option<&str>| {
         let bvh = dir.path().join("02_01.bvh");
         let mut c = locap();
         c.arg("solve").arg(data.join("cmu-c3d/02_01.c3d")).arg("-o").arg(&bvh);
@@ -161,16 +159,10 @@ fn the_second_body_model_turns_joints_closer_to_cmus_solution() {
         }
         let out = c.output().unwrap();
         assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-        let solved = locap_io::bvh::read_bvh_path(&bvh, locap_core::LengthUnit::Centimetre).unwrap();
-        // `solve` writes the tools' Y-up frame; the AMC is in the skeleton's motion frame.
-        let tools_to_motion = locap_core::units::y_up_to_z_up_rotation().inverse()
-            * locap_core::units::z_up_to_tools_y_up_rotation().inverse();
-        let solved = solved.rotated(tools_to_motion);
-        let rotating = vec![true; solved.skeleton.len()];
-        locap_eval::solver::compare_motions(&solved, &reference, &rotating).unwrap()
+        common::bvh_against_cmu(&bvh, &data, "02", "02_01")
     };
-    let built_in = joe(None);
-    let second = joe(Some("models/solver-cmu41-v2.locapsv"));
+    let built_in = solved_against_cmu(None);
+    let second = solved_against_cmu(Some("models/solver-cmu41-v2.locapsv"));
     eprintln!(
         "02_01 vs CMU AMC: built-in JOE {:.2} deg JPE {:.1} mm; second model JOE {:.2} deg JPE {:.1} mm",
         built_in.joe_deg, built_in.jpe_mm, second.joe_deg, second.jpe_mm
@@ -178,7 +170,7 @@ fn the_second_body_model_turns_joints_closer_to_cmus_solution() {
     // Measured here (every joint, the fixed ones included) 7.48 against 5.55 degrees; `locap
     // eval` (EDM cleaning, the rotating joints) 10.52 against 7.82.
     assert!(second.joe_deg < 0.85 * built_in.joe_deg, "{second:?} against {built_in:?}");
-    // Positions: 23.2 against 25.7 mm (both ways of measuring); a model that solved another skeleton or frame
-    // would be decimetres off.
+    // Positions: 23.2 against 25.7 mm (both ways of measuring); a model that solved another
+    // skeleton or frame would be decimetres off.
     assert!(second.jpe_mm < 35.0, "{second:?}");
 }

@@ -20,3 +20,19 @@ pub fn repo() -> PathBuf {
 pub fn shared_data() -> Option<PathBuf> {
     locap_testkit::shared_data()
 }
+
+/// A BVH that `locap solve` wrote (the animation tools' Y-up frame) against CMU's own
+/// solution of the same take, `cmu-asfamc/SUBJECT/TAKE.amc` of `data` at 120 Hz (the
+/// skeleton's motion frame; lab = `y_up_to_z_up(motion)`): both turns undone before comparing,
+/// every joint counted.
+pub fn bvh_against_cmu(bvh: &Path, data: &Path, subject: &str, take: &str) -> locap_eval::solver::MotionComparison {
+    let solved = locap_io::bvh::read_bvh_path(bvh, locap_core::LengthUnit::Centimetre).unwrap();
+    let tools_to_motion = locap_core::units::y_up_to_z_up_rotation().inverse()
+        * locap_core::units::z_up_to_tools_y_up_rotation().inverse();
+    let solved = solved.rotated(tools_to_motion);
+    let asf = locap_io::asf_amc::read_asf_path(&data.join(format!("cmu-asfamc/{subject}/{subject}.asf"))).unwrap();
+    let amc = data.join(format!("cmu-asfamc/{subject}/{take}.amc"));
+    let reference = locap_io::asf_amc::read_amc_path(&amc, &asf, 120.0).unwrap();
+    let rotating = vec![true; solved.skeleton.len()];
+    locap_eval::solver::compare_motions(&solved, &reference, &rotating).unwrap()
+}
