@@ -335,7 +335,10 @@ impl Context<'_> {
             (false, true) => Edge::End,
             (false, false) => Edge::Inside,
         };
-        let local = self.local_markers(marker);
+        // The sub-takes' markers are chosen by who is captured during the real gap, for the
+        // real gap and for its trials alike (the trials hide what is missing there).
+        let captured = |f: usize, j: usize| self.take.is_valid(f, j);
+        let local = self.local_markers(marker, gap.start..gap.end(), &captured);
         let wide = self.pca_markers(marker);
         let interpolates = gap.len as f64 <= self.config.interpolate_s * self.take.frame_rate_hz();
         let candidates: &[FillMethod] =
@@ -345,9 +348,8 @@ impl Context<'_> {
         let mut errors: Vec<Vec<Vec3>> = vec![Vec::new(); candidates.len()];
         // One trial: `target` hidden over `range` with `hidden`, filled on the sub-takes of
         // `target` and its neighbours by every candidate, errors added.
-        let mut score = |target: usize, range: Range<usize>, hidden: &dyn Fn(usize, usize) -> bool| {
-            let windows =
-                self.windows(range.clone(), edge, &self.local_markers(target), &self.pca_markers(target), hidden);
+        let mut score = |target: usize, local: &[usize], range: Range<usize>, hidden: &dyn Fn(usize, usize) -> bool| {
+            let windows = self.windows(range.clone(), edge, local, &self.pca_markers(target), hidden);
             let fills: Vec<Vec<Option<Vec3>>> = candidates.iter().map(|c| self.candidate(*c, &windows)).collect();
             let reference = match candidates.iter().position(|c| *c == reference) {
                 Some(r) => fills[r].clone(),
@@ -368,7 +370,7 @@ impl Context<'_> {
                 (start..start + gap.len).contains(&f)
                     && (j == marker || !self.take.is_valid((f as isize - offset) as usize, j))
             };
-            score(marker, start..start + gap.len, &hidden);
+            score(marker, &local, start..start + gap.len, &hidden);
         }
         // Trials at the gap's own frames, on neighbours: the motion of the real gap itself
         // (a pose the rest of the take never repeats defeats a method that learned from the
@@ -377,7 +379,9 @@ impl Context<'_> {
         for &j in &neighbours {
             let hidden =
                 |f: usize, k: usize| (gap.start..gap.end()).contains(&f) && (k == j || !self.take.is_valid(f, k));
-            score(j, gap.start..gap.end(), &hidden);
+            let seen = |f: usize, k: usize| k != marker && self.take.is_valid(f, k);
+            let local = self.local_markers(j, gap.start..gap.end(), &seen);
+            score(j, &local, gap.start..gap.end(), &hidden);
         }
         let mut scores: Vec<(FillMethod, f64)> = candidates
             .iter()
@@ -453,12 +457,55 @@ impl Context<'_> {
         (choice, samples)
     }
 
-    /// `marker` and its best neighbours (finite variance only), marker first.
-    fn local_markers(&self, marker: usize) -> Vec<usize> {
+    /// `marker` and the neighbours of its sub-takes, marker first: its best neighbours (finite
+    /// variance only) that are `captured(frame, neighbour)` somewhere in `frames`, at least
+    /// [`AutoConfig::markers`] of them, and further down the ranking (up to twice as many)
+    /// while a frame of `frames` has fewer than EDM's `K` of them captured; where fewer are
+    /// captured at all, the best of the others make up the number.
+    ///
+    /// Why: the best-ranked neighbours can be missing for the whole gap (a pair seen together
+    /// only while the subject lay still ranks as rigid), and a sub-take of neighbours that are
+    /// all missing leaves every segment-carrying candidate with nothing to carry the marker:
+    /// the gap fell back to linear interpolation. The whole-take EDM never had this problem,
+    /// since it picks among every captured marker per frame.
+    fn local_markers(
+        &self,
+        marker: usize,
+        frames: Range<usize>,
+        captured: &dyn Fn(usize, usize) -> bool,
+    ) -> Vec<usize> {
+        let need = self.config.edm_neighbours.max(3);
+        let most = 2 * self.config.markers;
         let mut list = vec![marker];
-        list.extend(
-            self.ranked[marker].iter().filter(|(_, v)| v.is_finite()).map(|(j, _)| *j).take(self.config.markers),
-        );
+        let mut cover = vec![0usize; frames.len()];
+        for j in self.ranked[marker].iter().filter(|(_, v)| v.is_finite()).map(|(j, _)| *j) {
+            let chosen = list.len() - 1;
+            let short = cover.iter().any(|c| *c < need);
+            if chosen >= most || (chosen >= self.config.markers && !short) {
+                break;
+            }
+            let seen: Vec<bool> = frames.clone().map(|f| captured(f, j)).collect();
+            let helps = if chosen < self.config.markers {
+                seen.iter().any(|s| *s)
+            } else {
+                seen.iter().zip(&cover).any(|(s, c)| *s && *c < need)
+            };
+            if helps {
+                list.push(j);
+                for (c, s) in cover.iter_mut().zip(&seen) {
+                    *c += usize::from(*s);
+                }
+            }
+        }
+        // Too few captured in the gap: the best of the rest, as their borders may still help.
+        for j in self.ranked[marker].iter().filter(|(_, v)| v.is_finite()).map(|(j, _)| *j) {
+            if list.len() > self.config.markers {
+                break;
+            }
+            if !list.contains(&j) {
+                list.push(j);
+            }
+        }
         list
     }
 

@@ -3,7 +3,7 @@
 //! that gap, so a wrong choice can be traced to its trials.
 //!
 //! ```text
-//! cargo run -p locap-eval --release --example auto_diag -- TAKE.c3d [--seed 0]
+//! cargo run -p locap-eval --release --example auto_diag -- TAKE.c3d [--seed 0] [--per-length 5] [--only 1s]
 //! ```
 
 use locap_clean::auto::{self, AutoConfig};
@@ -12,10 +12,15 @@ use locap_eval::fill_lengths::{self, LengthsConfig};
 
 fn main() -> anyhow::Result<()> {
     let args: Vec<String> = std::env::args().skip(1).collect();
-    let path = args.first().ok_or_else(|| anyhow::anyhow!("usage: auto_diag TAKE.c3d [--seed N]"))?;
-    let seed = args.iter().position(|a| a == "--seed").and_then(|k| args.get(k + 1)).map_or(Ok(0), |v| v.parse())?;
+    let path = args
+        .first()
+        .ok_or_else(|| anyhow::anyhow!("usage: auto_diag TAKE.c3d [--seed N] [--per-length N] [--only BUCKET]"))?;
+    let option = |name: &str| args.iter().position(|a| a == name).and_then(|k| args.get(k + 1));
+    let seed = option("--seed").map_or(Ok(0), |v| v.parse())?;
+    let per_length = option("--per-length").map_or(Ok(5), |v| v.parse())?;
+    let only = option("--only");
     let truth = fill_lengths::labeled_only(&locap_io::c3d::read_path(std::path::Path::new(path))?.to_take()?);
-    let config = LengthsConfig { seed, ..LengthsConfig::default() };
+    let config = LengthsConfig { seed, per_length, ..LengthsConfig::default() };
     let methods = [FillMethod::Edm, FillMethod::Pca, FillMethod::Rigid, FillMethod::Spline, FillMethod::Linear];
     println!(
         "| gap | marker | frames | chose | auto | {} | trials: {} |",
@@ -23,6 +28,9 @@ fn main() -> anyhow::Result<()> {
         methods.map(|m| m.name()).join(" | ")
     );
     for gap in fill_lengths::length_gaps(&truth, &config) {
+        if only.is_some_and(|b| *b != gap.bucket) {
+            continue;
+        }
         let holed = fill_lengths::holed(&truth, std::slice::from_ref(&gap));
         let rmse = |take: &locap_core::Take| -> f64 {
             let sq: f64 = gap
