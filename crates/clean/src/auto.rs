@@ -379,8 +379,7 @@ impl Context<'_> {
         for &j in &neighbours {
             let hidden =
                 |f: usize, k: usize| (gap.start..gap.end()).contains(&f) && (k == j || !self.take.is_valid(f, k));
-            let seen = |f: usize, k: usize| k != marker && self.take.is_valid(f, k);
-            let local = self.local_markers(j, gap.start..gap.end(), &seen);
+            let local = self.local_markers(j, gap.start..gap.end(), &captured);
             score(j, &local, gap.start..gap.end(), &hidden);
         }
         let mut scores: Vec<(FillMethod, f64)> = candidates
@@ -474,11 +473,12 @@ impl Context<'_> {
         frames: Range<usize>,
         captured: &dyn Fn(usize, usize) -> bool,
     ) -> Vec<usize> {
-        let need = self.config.edm_neighbours.max(3);
+        let need = self.config.edm_neighbours.max(edm::MIN_NEIGHBOURS);
         let most = 2 * self.config.markers;
+        let finite = || self.ranked[marker].iter().filter(|(_, v)| v.is_finite()).map(|(j, _)| *j);
         let mut list = vec![marker];
         let mut cover = vec![0usize; frames.len()];
-        for j in self.ranked[marker].iter().filter(|(_, v)| v.is_finite()).map(|(j, _)| *j) {
+        for j in finite() {
             let chosen = list.len() - 1;
             let short = cover.iter().any(|c| *c < need);
             if chosen >= most || (chosen >= self.config.markers && !short) {
@@ -498,7 +498,7 @@ impl Context<'_> {
             }
         }
         // Too few captured in the gap: the best of the rest, as their borders may still help.
-        for j in self.ranked[marker].iter().filter(|(_, v)| v.is_finite()).map(|(j, _)| *j) {
+        for j in finite() {
             if list.len() > self.config.markers {
                 break;
             }

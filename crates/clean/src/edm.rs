@@ -69,7 +69,7 @@ use rayon::prelude::*;
 const STEADY_FLOOR_MM2: f64 = 25.0;
 
 /// Fewest neighbours that fix a rigid alignment in 3D.
-const MIN_NEIGHBOURS: usize = 3;
+pub(crate) const MIN_NEIGHBOURS: usize = 3;
 
 /// Fills every gap of `take` with the EDM method using `k` neighbours ranked by `selection`.
 pub fn fill(take: &Take, k: usize, selection: Selection) -> Filled {
