@@ -15,7 +15,8 @@
 //!    an addition to the paper's unweighted Procrustes, measured with `locap bench fill` on
 //!    real takes (figures in `docs/benchmarks.md`, "EDM"). MDS fixes a point set only up
 //!    to a mirror image, so both chiralities are aligned (each with a proper rotation, the
-//!    reflection check) and the better fit wins;
+//!    reflection check) and the one nearer the marker carried rigidly with its neighbours
+//!    from the borders wins (the better fit where nothing was carried);
 //! 5. the fill is evaluated at the border frames too, where the marker is visible, and the
 //!    difference is blended out linearly across the gap, so the trajectory has no step at
 //!    `s-1` or `e+1`.
@@ -153,19 +154,26 @@ fn fill_gap(
     let Some(border_matrices) = BorderMatrices::new(source, marker, before, after) else { return Vec::new() };
     // MDS cannot tell a point set from its mirror image, and with three (always coplanar)
     // neighbours the fit cannot either. The chirality is decided by the marker carried
-    // rigidly with its neighbours from the nearest border to `t`: the mirror image of the
-    // right answer lies far from it.
-    let hint_at = |t: usize, chosen: &[usize]| -> Option<Vec3> {
-        let (b, own) = match (before, after) {
-            (Some(b), Some(a)) if t - b <= a - t => (b, border_matrices.marker_before),
-            (Some(_), Some(a)) => (a, border_matrices.marker_after),
-            (Some(b), None) => (b, border_matrices.marker_before),
-            (None, Some(a)) => (a, border_matrices.marker_after),
-            (None, None) => return None,
-        };
+    // rigidly with its neighbours from both borders to `t`, the two carries blended as the
+    // border offsets are: the mirror image of the right answer lies far from it. The carry
+    // from the nearer border alone drifts by more than the two images lie apart in mid-gap
+    // where the neighbours are nearly coplanar (a foot); the blend picked fewer wrong images
+    // on real gaps (`docs/benchmarks.md`, "EDM: which mirror image").
+    let carry = |b: usize, own: Option<Vec3>, t: usize, chosen: &[usize]| -> Option<Vec3> {
         let from: Vec<Vec3> = chosen.iter().map(|j| source.position_mm(b, *j)).collect::<Option<_>>()?;
         let to: Vec<Vec3> = chosen.iter().map(|j| source.position_mm(t, *j)).collect::<Option<_>>()?;
         Some(procrustes::align(&from, &to)?.apply(&own?))
+    };
+    let hint_at = |t: usize, chosen: &[usize]| -> Option<Vec3> {
+        let from_before = before.and_then(|b| carry(b, border_matrices.marker_before, t, chosen));
+        let from_after = after.and_then(|a| carry(a, border_matrices.marker_after, t, chosen));
+        match (from_before, from_after) {
+            (Some(p), Some(q)) => {
+                let w = border_matrices.weight(t);
+                Some(p * (1.0 - w) + q * w)
+            }
+            (p, q) => p.or(q),
+        }
     };
     // Offsets at the borders, blended out across the gap.
     let offset_at = |b: usize| -> Option<Vec3> {

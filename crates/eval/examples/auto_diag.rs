@@ -3,8 +3,11 @@
 //! that gap, so a wrong choice can be traced to its trials.
 //!
 //! ```text
-//! cargo run -p locap-eval --release --example auto_diag -- TAKE.c3d [--seed 0] [--per-length 5] [--only 1s]
+//! cargo run -p locap-eval --release --example auto_diag -- TAKE.c3d [--seed 0] [--per-length 5] [--only 1s] [--multi]
 //! ```
+//!
+//! `--multi`: the protocol's multi input instead (every gap and the limb gap at once, each
+//! method run once on it).
 
 use locap_clean::auto::{self, AutoConfig};
 use locap_clean::{FillConfig, FillMethod, fill_gaps};
@@ -27,11 +30,26 @@ fn main() -> anyhow::Result<()> {
         methods.map(|m| m.name()).join(" | "),
         methods.map(|m| m.name()).join(" | ")
     );
-    for gap in fill_lengths::length_gaps(&truth, &config) {
+    let multi = args.iter().any(|a| a == "--multi");
+    let gaps = fill_lengths::length_gaps(&truth, &config);
+    let mut all = gaps.clone();
+    all.extend(fill_lengths::limb_gap(&truth, &gaps, config.seed));
+    // The multi input is filled once by each method; a single input once per gap.
+    let fill_all = |holed: &locap_core::Take| {
+        let auto = auto::fill(holed, &AutoConfig::default());
+        let each: Vec<locap_core::Take> = methods
+            .iter()
+            .map(|m| fill_gaps(holed, &FillConfig { method: *m, ..FillConfig::default() }).take)
+            .collect();
+        (auto, each)
+    };
+    let shared = multi.then(|| fill_all(&fill_lengths::holed(&truth, &all)));
+    for gap in if multi { all.clone() } else { gaps } {
         if only.is_some_and(|b| *b != gap.bucket) {
             continue;
         }
-        let holed = fill_lengths::holed(&truth, std::slice::from_ref(&gap));
+        let own = if multi { None } else { Some(fill_all(&fill_lengths::holed(&truth, std::slice::from_ref(&gap)))) };
+        let Some((out, each)) = own.as_ref().or(shared.as_ref()) else { continue };
         let rmse = |take: &locap_core::Take| -> f64 {
             let sq: f64 = gap
                 .frames
@@ -42,14 +60,8 @@ fn main() -> anyhow::Result<()> {
                 .sum();
             (sq / gap.frames.len() as f64).sqrt()
         };
-        let out = auto::fill(&holed, &AutoConfig::default());
         let choice = out.choices.iter().find(|c| c.marker == gap.marker && c.frames.contains(&gap.frames.start));
-        let real: Vec<String> = methods
-            .iter()
-            .map(|m| {
-                format!("{:.1}", rmse(&fill_gaps(&holed, &FillConfig { method: *m, ..FillConfig::default() }).take))
-            })
-            .collect();
+        let real: Vec<String> = each.iter().map(|take| format!("{:.1}", rmse(take))).collect();
         let trials: Vec<String> = methods
             .iter()
             .map(|m| {
