@@ -167,13 +167,7 @@ fn fill_gap(
     let hint_at = |t: usize, chosen: &[usize]| -> Option<Vec3> {
         let from_before = before.and_then(|b| carry(b, border_matrices.marker_before, t, chosen));
         let from_after = after.and_then(|a| carry(a, border_matrices.marker_after, t, chosen));
-        match (from_before, from_after) {
-            (Some(p), Some(q)) => {
-                let w = border_matrices.weight(t);
-                Some(p * (1.0 - w) + q * w)
-            }
-            (p, q) => p.or(q),
-        }
+        across(from_before, from_after, border_matrices.weight(t))
     };
     // Offsets at the borders, blended out across the gap.
     let offset_at = |b: usize| -> Option<Vec3> {
@@ -210,13 +204,7 @@ fn fill_gap(
         let Some(mut p) = estimate(&border_matrices, source, &chosen, &weight_of, t, hint_at(t, &chosen)) else {
             continue;
         };
-        let w = border_matrices.weight(t);
-        p -= match (offset_before, offset_after) {
-            (Some(a), Some(b)) => a * (1.0 - w) + b * w,
-            (Some(a), None) => a,
-            (None, Some(b)) => b,
-            (None, None) => Vec3::zeros(),
-        };
+        p -= across(offset_before, offset_after, border_matrices.weight(t)).unwrap_or_else(Vec3::zeros);
         if p.iter().all(|v| v.is_finite()) {
             filled.push((t, p));
         }
@@ -304,13 +292,19 @@ impl BorderMatrices {
         };
         let d_before = at(self.before, self.marker_before);
         let d_after = at(self.after, self.marker_after);
-        let w = self.weight(t);
-        match (d_before, d_after) {
-            (Some(a), Some(b)) => Some(a * (1.0 - w) + b * w),
-            (Some(a), None) => Some(a),
-            (None, Some(b)) => Some(b),
-            (None, None) => None,
-        }
+        across(d_before, d_after, self.weight(t))
+    }
+}
+
+/// What is known at the two borders, blended across the gap with the later border's weight
+/// `w`; where only one border has it, that one.
+fn across<T>(before: Option<T>, after: Option<T>, w: f64) -> Option<T>
+where
+    T: std::ops::Mul<f64, Output = T> + std::ops::Add<Output = T>,
+{
+    match (before, after) {
+        (Some(a), Some(b)) => Some(a * (1.0 - w) + b * w),
+        (a, b) => a.or(b),
     }
 }
 

@@ -32,8 +32,11 @@ fn main() -> anyhow::Result<()> {
     );
     let multi = args.iter().any(|a| a == "--multi");
     let gaps = fill_lengths::length_gaps(&truth, &config);
+    // The multi input adds the simultaneous limb gap; a single input has no use for it.
     let mut all = gaps.clone();
-    all.extend(fill_lengths::limb_gap(&truth, &gaps, config.seed));
+    if multi {
+        all.extend(fill_lengths::limb_gap(&truth, &gaps, config.seed));
+    }
     // The multi input is filled once by each method; a single input once per gap.
     let fill_all = |holed: &locap_core::Take| {
         let auto = auto::fill(holed, &AutoConfig::default());
