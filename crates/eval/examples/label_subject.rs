@@ -1,5 +1,6 @@
 //! Labeling the raw captures of other subjects (issue 16): `cargo run --release -p locap-eval
-//! --example label_subject -- TEMPLATE.c3d RAW.c3d...` labels each raw take with defaults and
+//! --example label_subject -- TEMPLATE RAW.c3d...` labels each raw take with defaults (TEMPLATE a
+//! labeled C3D take, or a layout `.toml` from `locap layout --from-opensim`) and
 //! prints the share of marker samples labeled and, of the labeled samples checked, the share
 //! within 20 mm of their rigid edges' median lengths over the labeled take (the issue's
 //! check), with how labeling started and its time, and the hinges of the template and of the
@@ -9,9 +10,14 @@ use locap_label::{LabelConfig, Template, label_take};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().skip(1).collect();
-    let (template_path, raws) = args.split_first().ok_or("usage: label_subject TEMPLATE.c3d RAW.c3d...")?;
-    let template = locap_io::c3d::read_path(std::path::Path::new(template_path))?.to_take()?;
-    let template = Template::from_take(&template, None)?;
+    let (template_path, raws) = args.split_first().ok_or("usage: label_subject TEMPLATE.c3d|LAYOUT.toml RAW.c3d...")?;
+    // A layout (`locap layout --from-opensim`) or a labeled take.
+    let template = if template_path.ends_with(".toml") {
+        let layout = locap_synth::Layout::from_toml(&std::fs::read_to_string(template_path)?)?;
+        locap_eval::label_layout::template_from_layout(&layout)?
+    } else {
+        Template::from_take(&locap_io::c3d::read_path(std::path::Path::new(template_path))?.to_take()?, None)?
+    };
     if let Some(body) = template.body() {
         for j in body.joints.iter().filter(|j| j.hinge.is_some()) {
             let names = |s| segment_names(body, &template, s);

@@ -21,7 +21,10 @@
 //!
 //! A generic model is not the subject: its bones are longer or shorter, and the technician
 //! puts the markers a little elsewhere. Every tolerance therefore grows with the distance it
-//! spans ([`SUBJECT_SCALE_SLACK`]) on top of a placement allowance ([`PLACEMENT_MM`]). The
+//! spans ([`SUBJECT_SCALE_SLACK`]) on top of a placement allowance ([`PLACEMENT_MM`]), and an
+//! anatomical landmark on a bone that also carries a cluster plate (an ankle marker below a
+//! shank plate) is allowed a third of its distance from the plate more, since where the
+//! technician straps the plate is this subject's, not the model's (`plate_offsets_mm`). The
 //! model only starts labeling: [`crate::subject::label_calibrating`] then labels the take with
 //! joints loosened further and makes the subject's own template from the labeled take, which
 //! the take is labeled with again.
@@ -120,6 +123,47 @@ fn tolerance(distance_mm: f64) -> f64 {
     NOISE_MM + PLACEMENT_MM + SUBJECT_SCALE_SLACK * distance_mm
 }
 
+/// Most distant two markers of a plate may be (mm): cluster plates are a hand's width across.
+pub const PLATE_SPAN_MM: f64 = 150.0;
+
+/// Smallest number of markers that make a plate: four fix a rigid shape with one to spare.
+const PLATE_MARKERS: usize = 4;
+
+/// For each of one bone's markers at `rest_mm`, how far it sits from the bone's plate (mm):
+/// 0 for the plate's own markers and for every marker of a bone without one. A plate is the
+/// largest group of [`PLATE_MARKERS`] or more markers within [`PLATE_SPAN_MM`] of each other
+/// (a cluster strapped to the segment); the bone's other markers are anatomical landmarks (an
+/// ankle, an acromion), and where the landmark sits from the plate depends on where the
+/// technician strapped the plate on this subject's bone, not on the model: a third of that
+/// distance on top of the scale allowance, as for a marker across a joint. Without it the
+/// plate's true placement leaves its landmark out of tolerance, and a placement slid along
+/// the bone that matches the landmark costs as little (`docs/labeling.md`).
+fn plate_offsets_mm(rest_mm: &[Vec3]) -> Vec<f64> {
+    let n = rest_mm.len();
+    let near = |a: usize, b: usize| (rest_mm[a] - rest_mm[b]).norm() <= PLATE_SPAN_MM;
+    // Grow a group from each marker, nearest first, keeping every pair within the span; the
+    // largest group (the first found on ties) is the plate.
+    let mut plate: Vec<usize> = Vec::new();
+    for seed in 0..n {
+        let mut order: Vec<usize> = (0..n).filter(|&j| j != seed).collect();
+        order.sort_by(|&a, &b| (rest_mm[a] - rest_mm[seed]).norm().total_cmp(&(rest_mm[b] - rest_mm[seed]).norm()));
+        let mut group = vec![seed];
+        for j in order {
+            if group.iter().all(|&g| near(g, j)) {
+                group.push(j);
+            }
+        }
+        if group.len() > plate.len() {
+            plate = group;
+        }
+    }
+    if plate.len() < PLATE_MARKERS || plate.len() == n {
+        return vec![0.0; n];
+    }
+    let centre = plate.iter().map(|&j| rest_mm[j]).sum::<Vec3>() / plate.len() as f64;
+    (0..n).map(|i| if plate.contains(&i) { 0.0 } else { (rest_mm[i] - centre).norm() }).collect()
+}
+
 fn model_body(skeleton: &Skeleton, markers: &[ModelMarker], axes: &[Option<Vec<Vec3>>]) -> Option<Body> {
     let rest = forward_kinematics(skeleton, &vec![Quat::identity(); skeleton.len()], Vec3::zeros());
     let joints = skeleton.joints();
@@ -133,7 +177,9 @@ fn model_body(skeleton: &Skeleton, markers: &[ModelMarker], axes: &[Option<Vec<V
         }
         let centroid = on.iter().map(|&i| markers[i].rest_mm).sum::<Vec3>() / on.len() as f64;
         let local_mm: Vec<Vec3> = on.iter().map(|&i| markers[i].rest_mm - centroid).collect();
-        let tolerance_mm = local_mm.iter().map(|l| tolerance(l.norm())).collect();
+        let rest: Vec<Vec3> = on.iter().map(|&i| markers[i].rest_mm).collect();
+        let beside = plate_offsets_mm(&rest);
+        let tolerance_mm = local_mm.iter().zip(&beside).map(|(l, b)| tolerance(l.norm()) + b / 3.0).collect();
         *slot = Some(segments.len());
         segments.push(Segment { markers: on, local_mm, tolerance_mm });
     }
@@ -312,6 +358,22 @@ mod tests {
         // Nothing known: no hinge, as from_model.
         assert_eq!(hinges(&[]), vec![None, None]);
         assert_eq!(Template::from_model(&skeleton, &markers).unwrap().body().unwrap().joints[1].hinge, None);
+    }
+
+    #[test]
+    fn a_landmark_beside_a_plate_is_allowed_the_plate_strapped_elsewhere() {
+        // A shank: a 70 x 65 mm plate and an ankle landmark 220 mm below its centre.
+        let plate = [[35.0, -110.0, 50.0], [-40.0, -110.0, 50.0], [-40.0, -175.0, 50.0], [35.0, -175.0, 50.0]];
+        let mut shank: Vec<Vec3> = plate.iter().map(|p| Vec3::from(*p)).collect();
+        shank.push(Vec3::new(-2.5, -362.5, 50.0));
+        let beside = plate_offsets_mm(&shank);
+        assert_eq!(&beside[..4], &[0.0; 4]);
+        assert!((beside[4] - 220.0).abs() < 1e-9);
+        // A foot's four landmarks (heel and three forefoot markers): no plate of four, no
+        // allowance; nor for a plate alone.
+        let foot = [[-20.0, 20.0, 0.0], [120.0, 35.0, 40.0], [150.0, 45.0, 20.0], [160.0, 24.0, 50.0]];
+        assert_eq!(plate_offsets_mm(&foot.map(Vec3::from)), vec![0.0; 4]);
+        assert_eq!(plate_offsets_mm(&shank[..4]), vec![0.0; 4]);
     }
 
     #[test]

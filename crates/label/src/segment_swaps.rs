@@ -13,10 +13,18 @@
 //! that lowers the cost by at least [`MIN_GAIN`] and halves it, and the exchange is made
 //! where the votes within [`VOTE_WINDOW_S`] say so, so that one noisy frame neither makes
 //! nor blocks it.
+//!
+//! A frame also votes for an exchange, whatever it gains in markers' worth, where the labels
+//! fit the *mirror image* of the shape at half the cost of the shape itself and the exchange
+//! fits the shape at least as well as that: a rigid segment cannot turn into its mirror
+//! image, two of its markers exchanged can. That is what a generic model's flatter foot
+//! leaves (four landmarks that fit it within tolerances either way; `docs/labeling.md`).
+//! A plate's markers lie in a plane, which fits its mirror image as well as itself, so the
+//! rule leaves plates to the gain.
 
 use crate::body::Body;
 use crate::{Labels, PointFrames};
-use locap_clean::procrustes::align;
+use locap_clean::procrustes::{RigidTransform, align_weighted_and_mirrored};
 use locap_core::Vec3;
 
 /// A frame's segment is checked when at least this many of its markers are labeled: three
@@ -91,20 +99,26 @@ fn vote(
     if labeled.len() < MIN_CHECKED {
         return None;
     }
-    // Cost of the shape with marker m's label given by `label_of(m)`.
-    let cost = |label_of: &dyn Fn(usize) -> usize| -> Option<f64> {
+    // Cost of the shape, and of its mirror image, with marker m's label given by `label_of(m)`.
+    let costs = |label_of: &dyn Fn(usize) -> usize| -> Option<[f64; 2]> {
         let (from, to): (Vec<Vec3>, Vec<Vec3>) =
             labeled.iter().map(|&m| (seg.local_mm[m], at[label_of(m)].unwrap_or_default())).unzip();
-        let t = align(&from, &to)?;
-        Some(
+        let fits = align_weighted_and_mirrored(&from, &to, &vec![1.0; from.len()])?;
+        let mirror = |v: &Vec3| Vec3::new(v.x, v.y, -v.z);
+        let cost = |t: &RigidTransform, mirrored: bool| -> f64 {
             labeled
                 .iter()
                 .zip(from.iter().zip(&to))
-                .map(|(&m, (l, q))| ((t.apply(l) - q).norm() / seg.tolerance_mm[m]).powi(2))
-                .sum(),
-        )
+                .map(|(&m, (l, q))| {
+                    let l = if mirrored { mirror(l) } else { *l };
+                    ((t.apply(&l) - q).norm() / seg.tolerance_mm[m]).powi(2)
+                })
+                .sum()
+        };
+        Some([cost(&fits[0], false), cost(&fits[1], true)])
     };
-    let own = cost(&|m| m)?;
+    let cost = |label_of: &dyn Fn(usize) -> usize| costs(label_of).map(|[c, _]| c);
+    let [own, own_mirrored] = costs(&|m| m)?;
     let mut best: Option<(f64, usize)> = None;
     for (p, &(a, b)) in pairs.iter().enumerate() {
         if at[a].is_none() || at[b].is_none() {
@@ -124,7 +138,15 @@ fn vote(
             best = Some((c, p));
         }
     }
-    Some(best.filter(|&(c, _)| own - c >= MIN_GAIN && c <= own / 2.0).map(|(_, p)| p))
+    // A rigid segment cannot turn into its mirror image: labels that fit the mirrored shape
+    // by half the cost of the shape itself have two markers exchanged, whatever the gain in
+    // markers' worth (a foot's four landmarks, which a generic model's flatter foot fits
+    // within tolerances either way).
+    let mirrored = own_mirrored <= own / 2.0;
+    Some(
+        best.filter(|&(c, _)| c <= own / 2.0 && (own - c >= MIN_GAIN || (mirrored && c <= own_mirrored)))
+            .map(|(_, p)| p),
+    )
 }
 
 #[cfg(test)]
@@ -165,5 +187,41 @@ mod tests {
                 assert_eq!(labels.get(f, m), expected, "frame {f} marker {m}");
             }
         }
+    }
+
+    #[test]
+    fn labels_that_make_a_rigid_segment_its_mirror_image_are_exchanged_back() {
+        // Four markers with a mirror plane (x = 0) that exchanges the first two: with those two
+        // labels exchanged the points are the shape's mirror image. Tolerances so wide that
+        // the exchange gains less than MIN_GAIN in markers' worth (a generic model's foot).
+        let shape = [[40.0, 0.0, 0.0], [-40.0, 0.0, 0.0], [0.0, 60.0, 10.0], [0.0, -30.0, 80.0]].map(Vec3::from);
+        let centroid = shape.iter().sum::<Vec3>() / 4.0;
+        let names: Vec<_> = (0..4).map(|i| locap_core::MarkerName::parse(&format!("F{i}"))).collect();
+        let mut samples = Vec::new();
+        for f in 0..50 {
+            let turn = nalgebra::Rotation3::from_euler_angles(0.02 * f as f64, 0.5, 0.01 * f as f64);
+            samples.extend(shape.iter().map(|p| Some(Vec3::new(3.0 * f as f64, 0.0, 900.0) + turn * p)));
+        }
+        let take = locap_core::Take::from_samples(names, &samples, 100.0).unwrap();
+        let segment = crate::body::Segment {
+            markers: vec![0, 1, 2, 3],
+            local_mm: shape.iter().map(|p| p - centroid).collect(),
+            tolerance_mm: vec![200.0; 4],
+        };
+        let body = Body {
+            segments: vec![segment],
+            joints: Vec::new(),
+            attached: Vec::new(),
+            member: (0..4).map(|k| Some((0, k))).collect(),
+        };
+        let frames = PointFrames::from_take(&take);
+        let right = truth(&frames, 4);
+        let mut labels = right.clone();
+        assert_eq!(unswap_segments(&mut labels, &frames, &body), 0);
+        for f in 0..50 {
+            labels.exchange(f, 0, 1);
+        }
+        assert_eq!(unswap_segments(&mut labels, &frames, &body), 50);
+        assert_eq!(labels, right);
     }
 }
