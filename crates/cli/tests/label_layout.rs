@@ -24,12 +24,13 @@ fn label_from_the_opensim_layout_alone() {
     let out = locap().arg("label").arg(&take).arg("--layout").arg(&layout).arg("-o").arg(&labeled).output().unwrap();
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let summary = String::from_utf8_lossy(&out.stdout);
-    // The take's 62 markers, most of them labeled (measured 91.9% of the samples right).
+    // The take's 62 markers, labeled (measured 99.85% of the samples labeled, 100% of the
+    // shuffled take's points right in `crates/eval/tests/label_layout.rs`).
     let file = locap_io::c3d::read_path(&labeled).unwrap();
     let result = file.to_take().unwrap();
     assert_eq!(result.marker_count(), 62, "{summary}");
     let valid = (0..result.frame_count()).map(|f| (0..62).filter(|&m| result.is_valid(f, m)).count()).sum::<usize>();
-    assert!(valid as f64 >= 0.9 * (62 * result.frame_count()) as f64, "{summary}");
+    assert!(valid as f64 >= 0.99 * (62 * result.frame_count()) as f64, "{summary}");
     let recorded = file.parameters.continued_strings("LOCAP", "LABELED").join(" ");
     assert!(recorded.contains("layout") && recorded.contains("r62.toml"), "{recorded}");
 
