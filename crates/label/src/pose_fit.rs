@@ -39,6 +39,15 @@ pub const MIN_MARGIN: f64 = 1.0;
 /// Most candidates kept per segment.
 const MAX_CANDIDATES: usize = 64;
 
+/// A marker allowed further than this from its place (mm) is loose, and a seed triple holds
+/// at most one loose marker while the segment has two others: two landmarks beside a plate
+/// (`crate::model`: a torso's acromions) match so many point triples within their
+/// allowances that their triples cost half the fit, and the triples of one landmark with
+/// two plate markers find the same placements. Without any landmark in the seeds the
+/// placements that match the landmark are missed (KneeltoProne01 from its layout: the left
+/// ankle landmark labeled on a foot marker). Learned segments' tolerances stay far below.
+const SEED_TOLERANCE_MM: f64 = 60.0;
+
 /// Most marker triples of one segment tried.
 const MAX_TRIPLES: usize = 10;
 
@@ -171,9 +180,14 @@ fn segment_candidates(body: &Body, s: usize, points: &[Vec3], free: &[bool]) -> 
     let seg = &body.segments[s];
     let k = seg.markers.len();
     let mut triples = Vec::new();
+    let seeds = (0..k).filter(|&m| seg.tolerance_mm[m] <= SEED_TOLERANCE_MM).count();
+    let loose = |t: &[usize]| t.iter().filter(|&&m| seg.tolerance_mm[m] > SEED_TOLERANCE_MM).count();
     for a in 0..k {
         for b in a + 1..k {
             for c in b + 1..k {
+                if seeds >= 2 && loose(&[a, b, c]) > 1 {
+                    continue;
+                }
                 let area = (seg.local_mm[b] - seg.local_mm[a]).cross(&(seg.local_mm[c] - seg.local_mm[a])).norm();
                 triples.push((area, [a, b, c]));
             }
