@@ -14,10 +14,10 @@
 //! where the votes within [`VOTE_WINDOW_S`] say so, so that one noisy frame neither makes
 //! nor blocks it.
 //!
-//! A frame also votes for an exchange, whatever it gains in markers' worth, where the labels
-//! fit the *mirror image* of the shape at half the cost of the shape itself and the exchange
-//! fits the shape at least as well as that: a rigid segment cannot turn into its mirror
-//! image, two of its markers exchanged can. That is what a generic model's flatter foot
+//! A frame also votes for an exchange that gains less than [`MIN_GAIN`] (at least
+//! [`MIN_MIRROR_GAIN`]) where the labels fit the *mirror image* of the shape at half the cost
+//! of the shape itself and the exchange fits the shape at least as well as that: a rigid
+//! segment cannot turn into its mirror image, two of its markers exchanged can. That is what a generic model's flatter foot
 //! leaves (four landmarks that fit it within tolerances either way; `docs/labeling.md`).
 //! A plate's markers lie in a plane, which fits its mirror image as well as itself, so the
 //! rule leaves plates to the gain.
@@ -34,6 +34,11 @@ pub const MIN_CHECKED: usize = 4;
 /// An exchange must lower the segment's cost (squared residuals in tolerances) by at least
 /// this: two markers' worth.
 pub const MIN_GAIN: f64 = 2.0;
+
+/// An exchange that the mirror image calls for must still lower the cost by this much (half
+/// a marker's worth): a nearly square plate turned over its diagonal fits itself and its
+/// mirror image within noise, and noise must not exchange its labels.
+pub const MIN_MIRROR_GAIN: f64 = 0.5;
 
 /// Votes are counted over this many seconds on each side of a frame.
 pub const VOTE_WINDOW_S: f64 = 0.25;
@@ -144,8 +149,10 @@ fn vote(
     // within tolerances either way).
     let mirrored = own_mirrored <= own / 2.0;
     Some(
-        best.filter(|&(c, _)| c <= own / 2.0 && (own - c >= MIN_GAIN || (mirrored && c <= own_mirrored)))
-            .map(|(_, p)| p),
+        best.filter(|&(c, _)| {
+            c <= own / 2.0 && (own - c >= MIN_GAIN || (mirrored && c <= own_mirrored && own - c >= MIN_MIRROR_GAIN))
+        })
+        .map(|(_, p)| p),
     )
 }
 
@@ -193,7 +200,8 @@ mod tests {
     fn labels_that_make_a_rigid_segment_its_mirror_image_are_exchanged_back() {
         // Four markers with a mirror plane (x = 0) that exchanges the first two: with those two
         // labels exchanged the points are the shape's mirror image. Tolerances so wide that
-        // the exchange gains less than MIN_GAIN in markers' worth (a generic model's foot).
+        // the exchange gains less than MIN_GAIN in markers' worth, more than MIN_MIRROR_GAIN (a
+        // generic model's foot): the test fails without the mirror-image rule.
         let shape = [[40.0, 0.0, 0.0], [-40.0, 0.0, 0.0], [0.0, 60.0, 10.0], [0.0, -30.0, 80.0]].map(Vec3::from);
         let centroid = shape.iter().sum::<Vec3>() / 4.0;
         let names: Vec<_> = (0..4).map(|i| locap_core::MarkerName::parse(&format!("F{i}"))).collect();
@@ -206,7 +214,7 @@ mod tests {
         let segment = crate::body::Segment {
             markers: vec![0, 1, 2, 3],
             local_mm: shape.iter().map(|p| p - centroid).collect(),
-            tolerance_mm: vec![200.0; 4],
+            tolerance_mm: vec![90.0; 4],
         };
         let body = Body {
             segments: vec![segment],
