@@ -108,13 +108,14 @@ pub fn fit_pose(
     let free: Vec<bool> = (0..points.len()).map(|j| !taken.get(j).copied().unwrap_or(false)).collect();
     let n_seg = body.segments.len();
     let anchor = |s: usize| anchors.get(s).copied().flatten();
+    let cloud = FreeCloud::new(points, &free);
     let candidates: Vec<Vec<Candidate>> = (0..n_seg)
         .map(|s| match anchor(s) {
             Some(pose) => {
                 vec![Candidate { pose: Some(pose), points: vec![None; body.segments[s].markers.len()], cost: 0.0 }]
             }
             None => {
-                let mut c = segment_candidates(body, s, points, &free);
+                let mut c = segment_candidates(body, s, &cloud);
                 c.push(Candidate {
                     pose: None,
                     points: vec![None; body.segments[s].markers.len()],
@@ -175,10 +176,70 @@ pub fn fit_pose(
     }
 }
 
+/// The free points of one frame, indexed for the fit's two searches: the points within a
+/// marker's tolerance of where a placement puts it (sorted along x, a window of it scanned),
+/// and the points at a given distance from a point (each point's others sorted by distance,
+/// a ring of them scanned). A frame with as many ghosts as markers holds 120+ points, and a
+/// scan of all of them for every seed triple and refit was most of a first fit's time.
+struct FreeCloud<'a> {
+    points: &'a [Vec3],
+    /// Free points as (x, index), by x.
+    by_x: Vec<(f64, usize)>,
+    /// Free point indices, ascending.
+    usable: Vec<usize>,
+    /// For each point, (distance, index) of every other free point, nearest first (empty
+    /// for a point not free).
+    rings: Vec<Vec<(f64, usize)>>,
+}
+
+impl<'a> FreeCloud<'a> {
+    fn new(points: &'a [Vec3], free: &[bool]) -> FreeCloud<'a> {
+        let usable: Vec<usize> = (0..points.len()).filter(|&j| free[j]).collect();
+        let mut by_x: Vec<(f64, usize)> = usable.iter().map(|&j| (points[j].x, j)).collect();
+        by_x.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let mut rings = vec![Vec::new(); points.len()];
+        for &i in &usable {
+            let mut ring: Vec<(f64, usize)> =
+                usable.iter().filter(|&&j| j != i).map(|&j| ((points[i] - points[j]).norm(), j)).collect();
+            ring.sort_by(|a, b| a.0.total_cmp(&b.0));
+            rings[i] = ring;
+        }
+        FreeCloud { points, by_x, usable, rings }
+    }
+
+    /// Free points whose x lies within `radius` of `centre`'s (a superset of those within
+    /// `radius` of it), in no particular order.
+    fn near_x(&self, centre: &Vec3, radius: f64) -> impl Iterator<Item = usize> + '_ {
+        let lo = self.by_x.partition_point(|p| p.0 < centre.x - radius);
+        let hi = self.by_x.partition_point(|p| p.0 <= centre.x + radius);
+        self.by_x[lo..hi].iter().map(|p| p.1)
+    }
+
+    /// Free points other than `i` whose distance `d` from it satisfies
+    /// `(d - length).abs() <= tolerance`, ascending by index (the order a scan of all
+    /// points finds them in).
+    fn at_distance(&self, i: usize, length: f64, tolerance: f64) -> Vec<usize> {
+        let ring = &self.rings[i];
+        // The window is widened by a hair and tested exactly below, so that what is found
+        // does not depend on rounding at its ends.
+        let lo = ring.partition_point(|p| p.0 < length - tolerance - 1e-9);
+        let hi = ring.partition_point(|p| p.0 <= length + tolerance + 1e-9);
+        let mut out: Vec<usize> =
+            ring[lo..hi].iter().filter(|p| (p.0 - length).abs() <= tolerance).map(|p| p.1).collect();
+        out.sort_unstable();
+        out
+    }
+
+    fn distance(&self, a: usize, b: usize) -> f64 {
+        (self.points[a] - self.points[b]).norm()
+    }
+}
+
 /// Placements of segment `s` among the free points.
-fn segment_candidates(body: &Body, s: usize, points: &[Vec3], free: &[bool]) -> Vec<Candidate> {
+fn segment_candidates(body: &Body, s: usize, cloud: &FreeCloud) -> Vec<Candidate> {
     let seg = &body.segments[s];
     let k = seg.markers.len();
+    let points = cloud.points;
     let mut triples = Vec::new();
     let seeds = (0..k).filter(|&m| seg.tolerance_mm[m] <= SEED_TOLERANCE_MM).count();
     let loose = |t: &[usize]| t.iter().filter(|&&m| seg.tolerance_mm[m] > SEED_TOLERANCE_MM).count();
@@ -195,13 +256,11 @@ fn segment_candidates(body: &Body, s: usize, points: &[Vec3], free: &[bool]) -> 
     }
     triples.sort_by(|x, y| y.0.total_cmp(&x.0));
     triples.truncate(MAX_TRIPLES);
-    let usable: Vec<usize> = (0..points.len()).filter(|&j| free[j]).collect();
     let mut found: Vec<Candidate> = Vec::new();
     let mut seen = std::collections::HashSet::new();
     // Triples of (marker, point) pairs some candidate holds already: another triple of the
     // same placement would only find it again.
     let mut covered: std::collections::HashSet<[(usize, usize); 3]> = std::collections::HashSet::new();
-    let dist = |a: usize, b: usize| (points[a] - points[b]).norm();
     for (area, [a, b, c]) in triples {
         if area < 100.0 {
             // Nearly collinear: the triple does not fix the rotation.
@@ -211,13 +270,14 @@ fn segment_candidates(body: &Body, s: usize, points: &[Vec3], free: &[bool]) -> 
         let tol = |x: usize, y: usize| seg.tolerance_mm[x] + seg.tolerance_mm[y];
         let (dab, dac, dbc) = (d(a, b), d(a, c), d(b, c));
         let (tab, tac, tbc) = (tol(a, b), tol(a, c), tol(b, c));
-        for &i in &usable {
-            for &j in &usable {
-                if i == j || (dist(i, j) - dab).abs() > tab {
-                    continue;
-                }
-                for &l in &usable {
-                    if l == i || l == j || (dist(i, l) - dac).abs() > tac || (dist(j, l) - dbc).abs() > tbc {
+        for &i in &cloud.usable {
+            let thirds = cloud.at_distance(i, dac, tac);
+            if thirds.is_empty() {
+                continue;
+            }
+            for j in cloud.at_distance(i, dab, tab) {
+                for &l in &thirds {
+                    if l == j || (cloud.distance(j, l) - dbc).abs() > tbc {
                         continue;
                     }
                     if covered.contains(&[(a, i), (b, j), (c, l)]) {
@@ -225,7 +285,7 @@ fn segment_candidates(body: &Body, s: usize, points: &[Vec3], free: &[bool]) -> 
                     }
                     let from = [seg.local_mm[a], seg.local_mm[b], seg.local_mm[c]];
                     let Some(pose) = align(&from, &[points[i], points[j], points[l]]) else { continue };
-                    let Some(candidate) = refine(body, s, points, free, pose) else { continue };
+                    let Some(candidate) = refine(body, s, cloud, pose) else { continue };
                     let pairs: Vec<(usize, usize)> =
                         candidate.points.iter().enumerate().filter_map(|(m, p)| Some((m, (*p)? as usize))).collect();
                     for x in 0..pairs.len() {
@@ -249,28 +309,31 @@ fn segment_candidates(body: &Body, s: usize, points: &[Vec3], free: &[bool]) -> 
 
 /// Places segment `s` at `pose`, gives its markers their nearest free points (nearest pairs
 /// first, one point each) within tolerance, refits on them twice; `None` below three.
-fn refine(body: &Body, s: usize, points: &[Vec3], free: &[bool], mut pose: RigidTransform) -> Option<Candidate> {
+fn refine(body: &Body, s: usize, cloud: &FreeCloud, mut pose: RigidTransform) -> Option<Candidate> {
     let seg = &body.segments[s];
+    let points = cloud.points;
     let k = seg.markers.len();
     let mut chosen = vec![None; k];
     let mut cost = 0.0;
+    let mut pairs: Vec<(f64, usize, usize)> = Vec::new();
     for round in 0..3 {
-        let mut pairs: Vec<(f64, usize, usize)> = Vec::new();
+        pairs.clear();
         for m in 0..k {
             let at = pose.apply(&seg.local_mm[m]);
             let r2 = seg.tolerance_mm[m] * seg.tolerance_mm[m];
-            for (j, q) in points.iter().enumerate() {
-                let d2 = (at - q).norm_squared() / r2;
-                if free[j] && d2 < 1.0 {
+            for j in cloud.near_x(&at, seg.tolerance_mm[m]) {
+                let d2 = (at - points[j]).norm_squared() / r2;
+                if d2 < 1.0 {
                     pairs.push((d2, m, j));
                 }
             }
         }
-        pairs.sort_by(|a, b| a.0.total_cmp(&b.0));
+        // Nearest first; ties in marker then point order, as a scan of every point finds them.
+        pairs.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)).then(a.2.cmp(&b.2)));
         chosen.fill(None);
         let mut used: Vec<usize> = Vec::with_capacity(k);
         cost = k as f64;
-        for (d2, m, j) in pairs {
+        for &(d2, m, j) in &pairs {
             if chosen[m].is_none() && !used.contains(&j) {
                 chosen[m] = Some(j as u32);
                 used.push(j);
@@ -458,6 +521,38 @@ mod tests {
         assert!((joint_cost(&joint, &parent, &turned) - JOINT_CAP).abs() < 1e-9);
         let no_hinge = crate::body::Joint { hinge: None, ..joint };
         assert!(joint_cost(&no_hinge, &parent, &turned) < 1e-9);
+    }
+
+    #[test]
+    fn the_free_cloud_finds_what_a_scan_of_every_point_finds() {
+        // A deterministic scatter with ties in x and duplicated points.
+        let points: Vec<Vec3> = (0..60)
+            .map(|i| {
+                let t = i as f64;
+                Vec3::new(((t * 37.0) % 400.0).round(), (t * 91.0) % 300.0, (t * t * 13.0) % 250.0)
+            })
+            .chain([Vec3::new(10.0, 20.0, 30.0), Vec3::new(10.0, 20.0, 30.0)])
+            .collect();
+        let free: Vec<bool> = (0..points.len()).map(|j| j % 7 != 3).collect();
+        let cloud = FreeCloud::new(&points, &free);
+        for i in (0..points.len()).filter(|&i| free[i]) {
+            for (length, tolerance) in [(0.0, 0.0), (100.0, 20.0), (250.0, 60.0), (37.0, 0.5)] {
+                let scan: Vec<usize> = (0..points.len())
+                    .filter(|&j| free[j] && j != i && ((points[i] - points[j]).norm() - length).abs() <= tolerance)
+                    .collect();
+                assert_eq!(cloud.at_distance(i, length, tolerance), scan, "point {i}, {length} +- {tolerance}");
+            }
+        }
+        for centre in [Vec3::new(10.0, 20.0, 30.0), Vec3::new(200.0, 0.0, 0.0), Vec3::new(-50.0, 5.0, 5.0)] {
+            for radius in [0.0, 25.0, 120.0] {
+                let near: Vec<usize> = cloud.near_x(&centre, radius).collect();
+                for j in 0..points.len() {
+                    let within = free[j] && (points[j] - centre).norm() <= radius;
+                    assert!(!within || near.contains(&j), "point {j} within {radius} of {centre:?}");
+                    assert!(!near.contains(&j) || free[j], "taken point {j} offered");
+                }
+            }
+        }
     }
 
     #[test]
