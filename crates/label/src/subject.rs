@@ -46,6 +46,76 @@ impl Body {
         }
         body
     }
+
+    /// The body with the shape of every segment none of whose markers `calibrated` (a body
+    /// of the same markers) places replaced by its mirror partner's there, where there is one
+    /// (`partner[i]`: the marker on the other side of the body, `LHEE` for `RHEE`; a segment
+    /// all of whose partners lie on one segment of `calibrated`), mirrored and turned onto the
+    /// shape it replaces so that the joints keep their centres: a subject's left foot is the
+    /// mirror image of the right one its take showed, where a generic model's foot can miss
+    /// it by centimetres.
+    pub fn with_partner_shapes(&self, calibrated: &Body, partner: &[Option<usize>]) -> Body {
+        let mut body = self.clone();
+        let placed = |i: usize| {
+            calibrated.member.get(i).is_some_and(Option::is_some) || calibrated.attached.iter().any(|a| a.marker == i)
+        };
+        for seg in &mut body.segments {
+            if seg.markers.iter().any(|&i| placed(i)) {
+                continue;
+            }
+            let Some(mirrored) = mirror_partner(calibrated, seg, partner) else { continue };
+            let Some(onto) = align(&mirrored.local_mm, &seg.local_mm) else { continue };
+            seg.local_mm = mirrored.local_mm.iter().map(|p| onto.apply(p)).collect();
+            seg.tolerance_mm = mirrored.tolerance_mm;
+        }
+        body
+    }
+}
+
+/// `seg`'s markers with the shape and tolerances their partners have on one segment of
+/// `body`, mirrored (the local frame's z turned over); `None` where a partner is missing or
+/// the partners lie on more than one segment.
+fn mirror_partner(body: &Body, seg: &crate::body::Segment, partner: &[Option<usize>]) -> Option<crate::body::Segment> {
+    let on: Vec<(usize, usize)> = seg
+        .markers
+        .iter()
+        .map(|&i| body.member.get(partner.get(i).copied().flatten()?).copied().flatten())
+        .collect::<Option<_>>()?;
+    let s = on.first()?.0;
+    if on.iter().any(|&(t, _)| t != s) {
+        return None;
+    }
+    let theirs = &body.segments[s];
+    let shape: Vec<Vec3> = on.iter().map(|&(_, k)| theirs.local_mm[k]).collect();
+    let centroid = shape.iter().sum::<Vec3>() / shape.len() as f64;
+    Some(crate::body::Segment {
+        markers: seg.markers.clone(),
+        local_mm: shape
+            .iter()
+            .map(|p| {
+                let q = p - centroid;
+                Vec3::new(q.x, q.y, -q.z)
+            })
+            .collect(),
+        tolerance_mm: on.iter().map(|&(_, k)| theirs.tolerance_mm[k]).collect(),
+    })
+}
+
+/// For every marker of `names`, the marker of the same name on the other side of the body
+/// (a leading `L` and `R` exchanged: `LHEE` and `RHEE`), where there is one.
+pub fn mirror_partners(names: &[locap_core::MarkerName]) -> Vec<Option<usize>> {
+    names
+        .iter()
+        .map(|n| {
+            let label = n.label.as_str();
+            let other = match label.as_bytes().first()? {
+                b'L' => format!("R{}", &label[1..]),
+                b'R' => format!("L{}", &label[1..]),
+                _ => return None,
+            };
+            names.iter().position(|m| m.label == other)
+        })
+        .collect()
 }
 
 /// Widening of every joint's tolerance for the first fit of another subject (mm): the
@@ -136,6 +206,7 @@ pub fn label_calibrating(
     let mut labels = crate::run(frames, &loose, config, &fit, None)?;
     // The calibration would learn two exchanged labels as this subject's shape.
     unswap_segments(&mut labels, frames, body);
+    let partners = mirror_partners(template.names());
     let mut best: Option<(usize, Adapted)> = None;
     let mut last = fit;
     // Round 0 scores the first pass; each later one labels the take again with the template
@@ -154,7 +225,8 @@ pub fn label_calibrating(
         // The calibrated body places what the last labels showed; segments they missed are
         // placed by the template's loose body, anchored on the calibrated ones.
         let Some(own_body) = calibrated.body() else { break };
-        let Ok(fit) = two_stage_start(frames, &calibrated, own_body, loose_body, &config.fit) else { break };
+        let loose_round = loose_body.with_partner_shapes(own_body, &partners);
+        let Ok(fit) = two_stage_start(frames, &calibrated, own_body, &loose_round, &config.fit) else { break };
         labels = crate::run(frames, &calibrated, config, &fit, pose_model.clone())?;
         unswap_segments(&mut labels, frames, body);
         last = fit;
@@ -296,6 +368,70 @@ mod tests {
         assert!(right >= 8 * 195, "{right} of {}", 8 * 200);
         let (kept, checked) = adapted.labels.median_edge_consistency(&frames, &template, 20.0);
         assert_eq!(kept, checked);
+    }
+
+    #[test]
+    fn left_and_right_markers_are_partners() {
+        let names: Vec<locap_core::MarkerName> =
+            ["LHEE", "RHEE", "RFTB", "BHD", "LFTB", "LONE"].iter().map(|n| locap_core::MarkerName::parse(n)).collect();
+        assert_eq!(mirror_partners(&names), vec![Some(1), Some(0), Some(4), None, Some(2), None]);
+    }
+
+    /// A segment the calibration never showed takes its partner's shape, mirrored, placed on
+    /// the generic shape it replaces (so that its joints keep their centres); one with a
+    /// marker calibrated, or without partners on one segment, keeps its own.
+    #[test]
+    fn a_missing_segment_takes_its_partners_shape_mirrored() {
+        use crate::body::Segment;
+        let right = [
+            Vec3::new(0.0, 0.0, 0.0),
+            Vec3::new(200.0, 0.0, 30.0),
+            Vec3::new(230.0, 40.0, 0.0),
+            Vec3::new(215.0, -35.0, 5.0),
+        ];
+        // Markers 0-3 the right foot, 4-7 the left foot.
+        let segment = |markers: Vec<usize>, local_mm: Vec<Vec3>| Segment {
+            tolerance_mm: vec![10.0; markers.len()],
+            markers,
+            local_mm,
+        };
+        let member: Vec<Option<(usize, usize)>> = (0..8).map(|i| (i < 4).then_some((0, i))).collect();
+        let calibrated = Body {
+            segments: vec![segment((0..4).collect(), right.to_vec())],
+            joints: vec![],
+            attached: vec![],
+            member,
+        };
+        // The generic left foot: a smaller foot, somewhere else in its own frame.
+        let generic: Vec<Vec3> =
+            right.iter().map(|p| Vec3::new(0.8 * p.x + 5.0, -0.8 * p.y, 0.8 * p.z - 20.0)).collect();
+        let model_member: Vec<Option<(usize, usize)>> = (0..8).map(|i| Some((i / 4, i % 4))).collect();
+        let model = Body {
+            segments: vec![segment((0..4).collect(), generic.clone()), segment((4..8).collect(), generic.clone())],
+            joints: vec![],
+            attached: vec![],
+            member: model_member,
+        };
+        let partner: Vec<Option<usize>> = (0..8).map(|i| Some((i + 4) % 8)).collect();
+        let out = model.with_partner_shapes(&calibrated, &partner);
+        // The right foot is calibrated: its generic shape stays.
+        assert_eq!(out.segments[0], model.segments[0]);
+        // The left one is the right one mirrored: every distance the right one's, and no
+        // rotation turns it onto the right one.
+        let left = &out.segments[1].local_mm;
+        for a in 0..4 {
+            for b in 0..4 {
+                assert!(((left[a] - left[b]).norm() - (right[a] - right[b]).norm()).abs() < 1e-9);
+            }
+        }
+        let volume = |p: &[Vec3]| (p[1] - p[0]).cross(&(p[2] - p[0])).dot(&(p[3] - p[0]));
+        assert!((volume(left) + volume(&right)).abs() < 1e-6 && volume(&right).abs() > 1.0);
+        // Placed on the generic shape it replaces: closer to it than the bare mirror image.
+        let rms = |p: &[Vec3]| (p.iter().zip(&generic).map(|(a, b)| (a - b).norm_squared()).sum::<f64>() / 4.0).sqrt();
+        let bare: Vec<Vec3> = right.iter().map(|p| Vec3::new(p.x, p.y, -p.z)).collect();
+        assert!(rms(left) < rms(&bare), "{} against {}", rms(left), rms(&bare));
+        // Without partners nothing changes.
+        assert_eq!(model.with_partner_shapes(&calibrated, &[None; 8]), model);
     }
 
     #[test]
