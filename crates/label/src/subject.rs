@@ -23,6 +23,9 @@
 //!    their segments' distances, at most [`CALIBRATION_ROUNDS`] times. Before each
 //!    calibration, two labels of a segment that the template's shape says are exchanged are
 //!    exchanged back ([`crate::segment_swaps`]): the calibration would learn them as they are.
+//!    A segment the calibrated body leaves out is placed by the loose body in its mirror
+//!    partner's calibrated shape where the take showed that one ([`Body::with_partner_shapes`]:
+//!    this subject's left foot is its right foot mirrored, not the template's foot).
 //!
 //! A take whose subject the template's own body fits is labeled as before: none of this
 //! runs.
@@ -223,7 +226,8 @@ pub fn label_calibrating(
             break;
         }
         // The calibrated body places what the last labels showed; segments they missed are
-        // placed by the template's loose body, anchored on the calibrated ones.
+        // placed by the template's loose body, anchored on the calibrated ones, in the shape
+        // of their calibrated mirror partner where there is one.
         let Some(own_body) = calibrated.body() else { break };
         let loose_round = loose_body.with_partner_shapes(own_body, &partners);
         let Ok(fit) = two_stage_start(frames, &calibrated, own_body, &loose_round, &config.fit) else { break };
