@@ -69,16 +69,17 @@ fn each_half_labels_the_other_with_ghosts_and_at_30_fps() {
 /// Other subjects, unlabeled captures, template KneeltoProne01 (another subject, whose
 /// joint centres in the segments' frames differ by more than the template's tolerances):
 /// labeled after calibrating the template on the take (`locap_label::subject`), with
-/// defaults. Bounds from the measurements in docs/labeling.md (S09 88.5% labeled, 96.5% of
-/// them within 20 mm of their edges' median, 82.1% before its left foot took the calibrated
-/// right foot's shape mirrored; S01 71.7%, 88.5%), below the 90 / 90.
+/// defaults, to the 90% labeled and 90% of them within 20 mm of their segment
+/// distances' median. Measured (docs/labeling.md): S09 94.8% / 99.1%, S01 97.2% / 97.9%;
+/// before the first pass widened the template's plate shapes and refused bones twisted
+/// past the template's turns, 88.5% / 96.5% and 71.7% / 88.5%.
 #[test]
 fn other_subjects_are_labeled_after_calibration() {
     let Some(take) = kneel() else { return };
     let data = locap_testkit::shared_data().unwrap();
     let template = Template::from_take(&take, None).unwrap();
     for (name, labeled_min, consistent_min) in
-        [("S09_KneeltoRun02.c3d", 86.0, 95.0), ("S01_Pronetokneel01_mksrem.c3d", 65.0, 83.0)]
+        [("S09_KneeltoRun02.c3d", 90.0, 90.0), ("S01_Pronetokneel01_mksrem.c3d", 90.0, 90.0)]
     {
         let raw = locap_io::c3d::read_path(&data.join("labeling").join(name)).unwrap().to_take().unwrap();
         let labeled = label_take(&raw, &template, &LabelConfig::default()).unwrap();

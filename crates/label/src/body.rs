@@ -12,7 +12,8 @@
 //! - *joints*: for two segments, the point fixed in both frames over the take (the functional
 //!   joint centre, a linear least-squares problem in its two local positions, as in the
 //!   SCoRE method of Ehrig et al. 2006); segments are joined along a spanning tree of the
-//!   best-fitting centres;
+//!   best-fitting centres; each keeps the hinge axis it turns about, if one, and how far it
+//!   twists each bone about the bone's own length over the take;
 //! - *attached markers*: a marker in no segment of three is placed by the segment in whose
 //!   frame it moves least.
 //!
@@ -80,6 +81,44 @@ pub struct Joint {
     /// For a hinge (one rotation between the two segments: a knee, an elbow), its axis;
     /// `None` where the joint turns about more axes or nothing says.
     pub hinge: Option<Hinge>,
+    /// How far the joint twists the child about its own bone, and the parent about its
+    /// bone, over the template; `None` where the template does not say (a model's body).
+    pub twist: Option<[Twist; 2]>,
+}
+
+/// The turn of one segment of a joint about its bone (the line from the joint's centre to the
+/// segment's markers) relative to the other segment, over the template: no joint turns a bone
+/// about its own length by half a turn, but a plate turned over on its long axis (front and
+/// back markers swapped) keeps its shape and nearly its joint centres.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Twist {
+    /// The bone's direction in the segment's frame (unit).
+    pub axis: Vec3,
+    /// Circular mean of the turn about it over the template (radians).
+    pub mean_rad: f64,
+    /// Half the width of the turns seen (95% of them within the mean plus or minus this).
+    pub half_width_rad: f64,
+}
+
+impl Twist {
+    /// The turn about `axis` of `rotation` (which maps the segment's frame to the other's),
+    /// in (-pi, pi] (swing-twist decomposition).
+    pub fn angle(axis: &Vec3, rotation: &nalgebra::Rotation3<f64>) -> f64 {
+        let q = nalgebra::UnitQuaternion::from_rotation_matrix(rotation);
+        wrap_angle(2.0 * q.imag().dot(axis).atan2(q.w))
+    }
+
+    /// How far `rotation` twists past what the template showed (radians, 0 inside).
+    pub fn excess_rad(&self, rotation: &nalgebra::Rotation3<f64>) -> f64 {
+        (wrap_angle(Twist::angle(&self.axis, rotation) - self.mean_rad).abs() - self.half_width_rad).max(0.0)
+    }
+}
+
+/// `a` wrapped into (-pi, pi].
+fn wrap_angle(a: f64) -> f64 {
+    use std::f64::consts::{PI, TAU};
+    let w = a.rem_euclid(TAU);
+    if w > PI { w - TAU } else { w }
 }
 
 /// A hinge's axis: the same line as seen in each of its two segments' frames (unit vectors).
@@ -440,6 +479,7 @@ fn joint_tree(segments: &[Segment], poses: &[Vec<Option<RigidTransform>>]) -> Ve
                 child_mm: ca,
                 tolerance_mm: 3.0 * rms + 15.0,
                 hinge: learn_hinge(&poses[p], &poses[c]),
+                twist: learn_twist(&segments[p], &segments[c], pa, ca, &poses[p], &poses[c]),
             });
         }
     }
@@ -503,6 +543,46 @@ fn learn_hinge(parent: &[Option<RigidTransform>], child: &[Option<RigidTransform
         .collect();
     let range = percentile(angles.clone(), 0.95) - percentile(angles, 0.05);
     (range >= MIN_HINGE_RANGE_DEG).then_some(Hinge { parent_axis, child_axis })
+}
+
+/// A segment's bone direction is only defined where its markers sit at least this far from
+/// the joint's centre (mm).
+const MIN_TWIST_ARM_MM: f64 = 30.0;
+
+/// The twist of each segment of a joint about its bone relative to the other, over the
+/// template's frames (child first, then parent); `None` where a segment's markers sit on the
+/// joint's centre or the two are seen together in too few frames.
+fn learn_twist(
+    parent: &Segment,
+    child: &Segment,
+    parent_mm: Vec3,
+    child_mm: Vec3,
+    parent_poses: &[Option<RigidTransform>],
+    child_poses: &[Option<RigidTransform>],
+) -> Option<[Twist; 2]> {
+    let relative: Vec<nalgebra::Rotation3<f64>> = parent_poses
+        .iter()
+        .zip(child_poses)
+        .filter_map(|(p, c)| Some(p.as_ref()?.rotation.inverse() * c.as_ref()?.rotation))
+        .collect();
+    if relative.len() < 10 {
+        return None;
+    }
+    let axis = |seg: &Segment, centre: Vec3| {
+        let centroid = seg.local_mm.iter().sum::<Vec3>() / seg.local_mm.len() as f64;
+        (centroid - centre).try_normalize(MIN_TWIST_ARM_MM)
+    };
+    let range = |axis: Vec3, rotations: &mut dyn Iterator<Item = nalgebra::Rotation3<f64>>| {
+        let angles: Vec<f64> = rotations.map(|r| Twist::angle(&axis, &r)).collect();
+        let mean_rad = angles.iter().map(|a| a.sin()).sum::<f64>().atan2(angles.iter().map(|a| a.cos()).sum::<f64>());
+        let mut off: Vec<f64> = angles.iter().map(|a| wrap_angle(a - mean_rad).abs()).collect();
+        off.sort_by(f64::total_cmp);
+        let half_width_rad = off[((off.len() - 1) as f64 * 0.95).round() as usize];
+        Twist { axis, mean_rad, half_width_rad }
+    };
+    let child_twist = range(axis(child, child_mm)?, &mut relative.iter().copied());
+    let parent_twist = range(axis(parent, parent_mm)?, &mut relative.iter().map(|r| r.inverse()));
+    Some([child_twist, parent_twist])
 }
 
 /// Attaches marker `i` to the segment in whose frame it moves least.
@@ -613,6 +693,47 @@ pub(crate) mod tests {
         assert_eq!(learn(&ball).joints[0].hinge, None);
         let still = jointed_take(200, |s| Rotation3::from_euler_angles(0.3 * s, 0.0, 0.0));
         assert_eq!(learn(&still).joints[0].hinge, None);
+    }
+
+    #[test]
+    fn twist_is_the_turn_about_the_axis_alone() {
+        let axis = Vec3::z();
+        let turn = |deg: f64| Rotation3::from_axis_angle(&Vec3::z_axis(), deg.to_radians());
+        let swing = Rotation3::from_axis_angle(&Vec3::x_axis(), 70f64.to_radians());
+        for deg in [-170.0, -45.0, 0.0, 30.0, 120.0] {
+            // Twist first (about the segment's own axis), then any swing off it.
+            let angle = Twist::angle(&axis, &(swing * turn(deg))).to_degrees();
+            assert!((angle - deg).abs() < 1e-6, "{deg}: {angle}");
+        }
+        assert!(Twist::angle(&axis, &swing).abs() < 1e-9);
+        let seen = Twist { axis, mean_rad: 0.2, half_width_rad: 0.3 };
+        assert_eq!(seen.excess_rad(&turn(20.0)), 0.0);
+        // Half a turn on from what the template showed: a plate turned over.
+        let over = seen.excess_rad(&(swing * turn(0.2f64.to_degrees() + 180.0)));
+        assert!((over - (std::f64::consts::PI - 0.3)).abs() < 1e-6, "{over}");
+    }
+
+    #[test]
+    fn a_joint_learns_how_far_it_twists_and_a_turned_over_plate_twists_further() {
+        let take = hinge_take(200);
+        let body = learn(&take);
+        let joint = &body.joints[0];
+        let [child, parent] = joint.twist.expect("both segments sit off the joint's centre");
+        // The knee bends about x, roughly across both bones (from the joint, neither segment's
+        // markers lie square to x): neither turns about its own length by more than ~15
+        // degrees either way.
+        assert!(child.half_width_rad < 0.25 && parent.half_width_rad < 0.25, "{child:?} {parent:?}");
+        let place = |s: usize, f: usize| fit_segment(&take, f, &body.segments[s]).unwrap().0;
+        let (tp, tc) = (place(joint.parent, 100), place(joint.child, 100));
+        let relative = tp.rotation.inverse() * tc.rotation;
+        assert!(child.excess_rad(&relative) < 1e-6 && parent.excess_rad(&relative.inverse()) < 1e-6);
+        // The child turned over on its bone: half a turn about the child's own axis.
+        let over =
+            relative * Rotation3::from_axis_angle(&nalgebra::Unit::new_normalize(child.axis), std::f64::consts::PI);
+        // Past the quarter turn the first fit allows beyond the template's twists, seen from
+        // either bone.
+        let (c, p) = (child.excess_rad(&over), parent.excess_rad(&over.inverse()));
+        assert!(c > 2.0 && p > 2.0, "{c} {p}");
     }
 
     #[test]

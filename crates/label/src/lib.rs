@@ -219,8 +219,9 @@ impl Labels {
     }
 
     /// The check of labels of a subject no template was made of: of the labeled
-    /// samples with at least one labeled rigid neighbour (template spread at most 12 mm), how
-    /// many keep every such edge within `tolerance_mm` of the edge's median length over these
+    /// samples with at least one labeled rigid neighbour (template spread at most 12 mm, and
+    /// on the same segment of the template's body where both markers are on one), how many
+    /// keep every such edge within `tolerance_mm` of the edge's median length over these
     /// labels (not the template's length: another subject's segments differ). Returns
     /// (consistent, checked).
     pub fn median_edge_consistency(
@@ -245,7 +246,21 @@ impl Labels {
     ) -> Vec<Option<EdgeCheck>> {
         let m = self.markers;
         let t = self.frame_count();
-        let rigid = |i: usize| template.edges()[i].iter().filter(|e| e.std_mm <= 12.0).map(|e| e.neighbour);
+        // A template take can hold two segments still against each other (a kneeling subject's
+        // pelvis and shanks); another take moves them. Where the template's body puts both
+        // markers on segments, only a pair on one segment is a segment distance.
+        let one_segment = |i: usize, j: usize| {
+            template.body().is_none_or(|b| match (b.member[i], b.member[j]) {
+                (Some((a, _)), Some((c, _))) => a == c,
+                _ => true,
+            })
+        };
+        let rigid = move |i: usize| {
+            template.edges()[i]
+                .iter()
+                .filter(move |e| e.std_mm <= 12.0 && one_segment(i, e.neighbour))
+                .map(|e| e.neighbour)
+        };
         let distance = |f: usize, i: usize, j: usize| {
             let points = frames.frame(f);
             Some((points[self.get(f, i)?] - points[self.get(f, j)?]).norm())

@@ -227,7 +227,15 @@ fn model_body(skeleton: &Skeleton, markers: &[ModelMarker], axes: &[Option<Vec<V
             Some([axis]) if axis.norm() > 0.0 => Some(Hinge::shared(axis.normalize())),
             _ => None,
         };
-        body_joints.push(Joint { parent, child, parent_mm: centre - pc, child_mm: centre - cc, tolerance_mm, hinge });
+        body_joints.push(Joint {
+            parent,
+            child,
+            parent_mm: centre - pc,
+            child_mm: centre - cc,
+            tolerance_mm,
+            hinge,
+            twist: None,
+        });
     }
     let mut member = vec![None; markers.len()];
     for (s, seg) in segments.iter().enumerate() {

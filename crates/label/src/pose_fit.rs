@@ -15,7 +15,9 @@
 //!    one; their joints tell them apart. A hinge of a model's skeleton (a knee, an elbow)
 //!    also costs the cap when the two placements turn its axis around: a rectangular plate
 //!    turned over about its long axis keeps every distance and nearly its joint centres, but
-//!    not the way its hinge points.
+//!    not the way its hinge points. Any joint of a body learned from a take costs the cap
+//!    when it twists either bone about its own length more than a quarter turn past the
+//!    twists the take showed (`body::Twist`): a plate turned over is half a turn off.
 //! 3. *Sure or not*: min-marginals of the same programme say, per segment, how much worse the
 //!    best configuration with another placement of it (one giving under half of its markers
 //!    the same points, or none) would be. A segment is sure when that margin is at least [`MIN_MARGIN`]
@@ -55,6 +57,11 @@ const MAX_TRIPLES: usize = 10;
 /// wrong placement (or a pose far from any the template showed) and weighs as much as
 /// nine missing markers.
 const JOINT_CAP: f64 = 9.0;
+
+/// A joint twisting a bone more than this past the twists the template showed costs the cap
+/// (radians): a knee or hip turns its bone by tens of degrees, a forearm by up to about
+/// 90 from a template's mid position; a plate turned over by half a turn.
+const TWIST_ALLOWANCE_RAD: f64 = std::f64::consts::FRAC_PI_2;
 
 /// Cost of two segments on one joint sharing a point.
 const SHARED_POINT_COST: f64 = 100.0;
@@ -362,7 +369,14 @@ fn joint_cost(joint: &crate::body::Joint, a: &Candidate, b: &Candidate) -> f64 {
     // the placements is a plate turned over on its own symmetry (a rectangle's front and
     // back markers swapped), which its shape and the joint's centre cannot tell apart.
     let reversed = joint.hinge.is_some_and(|h| h.reversed(pa, pb));
-    let cost = if reversed { JOINT_CAP } else { (d * d).min(JOINT_CAP) };
+    // Any joint: a bone turned about its own length far past what the template showed is a
+    // plate turned over on its long axis.
+    let twisted = joint.twist.is_some_and(|[child, parent]| {
+        let relative = pa.rotation.inverse() * pb.rotation;
+        child.excess_rad(&relative) > TWIST_ALLOWANCE_RAD
+            || parent.excess_rad(&relative.inverse()) > TWIST_ALLOWANCE_RAD
+    });
+    let cost = if reversed || twisted { JOINT_CAP } else { (d * d).min(JOINT_CAP) };
     cost + SHARED_POINT_COST * shared as f64
 }
 
@@ -503,6 +517,7 @@ mod tests {
             child_mm: Vec3::new(0.0, 200.0, 0.0),
             tolerance_mm: 50.0,
             hinge: Some(crate::body::Hinge::shared(Vec3::z())),
+            twist: None,
         };
         let at = |rotation: Rotation3<f64>, translation: Vec3| Candidate {
             pose: Some(RigidTransform { rotation, translation }),
@@ -521,6 +536,50 @@ mod tests {
         assert!((joint_cost(&joint, &parent, &turned) - JOINT_CAP).abs() < 1e-9);
         let no_hinge = crate::body::Joint { hinge: None, ..joint };
         assert!(joint_cost(&no_hinge, &parent, &turned) < 1e-9);
+    }
+
+    #[test]
+    fn a_bone_twisted_past_the_templates_turns_costs_the_cap() {
+        // A ball joint (no hinge) bent 100 degrees across its bones, each bone running from
+        // the joint's centre to its segment's origin; the template showed it within 0.3 rad of
+        // that pose's twists.
+        let bend = Rotation3::from_euler_angles(0.0, 0.0, 100f64.to_radians());
+        let (child_axis, parent_axis) = (-Vec3::y(), Vec3::y());
+        let seen = |axis: Vec3, relative: Rotation3<f64>| crate::body::Twist {
+            axis,
+            mean_rad: crate::body::Twist::angle(&axis, &relative),
+            half_width_rad: 0.3,
+        };
+        let joint = crate::body::Joint {
+            parent: 0,
+            child: 1,
+            parent_mm: Vec3::new(0.0, -200.0, 0.0),
+            child_mm: Vec3::new(0.0, 200.0, 0.0),
+            tolerance_mm: 50.0,
+            hinge: None,
+            twist: Some([seen(child_axis, bend), seen(parent_axis, bend.inverse())]),
+        };
+        let at = |rotation: Rotation3<f64>| Candidate {
+            pose: Some(RigidTransform {
+                rotation,
+                translation: Vec3::new(0.0, -200.0, 0.0) - rotation * Vec3::new(0.0, 200.0, 0.0),
+            }),
+            points: vec![],
+            cost: 0.0,
+        };
+        let parent = Candidate {
+            pose: Some(RigidTransform { rotation: Rotation3::identity(), translation: Vec3::zeros() }),
+            points: vec![],
+            cost: 0.0,
+        };
+        // Twisted 0.2 rad more on its bone: within what was seen.
+        let bent = at(bend * Rotation3::from_euler_angles(0.0, 0.2, 0.0));
+        assert!(joint_cost(&joint, &parent, &bent) < 1e-9);
+        // Turned over on its bone: the centres agree, the twist is half a turn off.
+        let turned = at(bend * Rotation3::from_euler_angles(0.0, std::f64::consts::PI, 0.0));
+        assert!((joint_cost(&joint, &parent, &turned) - JOINT_CAP).abs() < 1e-9);
+        let untold = crate::body::Joint { twist: None, ..joint };
+        assert!(joint_cost(&untold, &parent, &turned) < 1e-9);
     }
 
     #[test]

@@ -10,10 +10,13 @@
 //! with its distances; here the subject's model is found on the take itself:
 //!
 //! 1. *First fit with loose joints*: the template's body places the segments it is sure of
-//!    as they are; the body with every joint's tolerance widened by [`JOINT_SLACK_MM`] then
-//!    places the others, those held as anchors (so a loosened joint still has its sure
-//!    side). Labeling starts from the first frame sure of [`FIRST_PASS_FRACTION`] of the
-//!    markers and runs forwards and backwards ([`crate::start`]).
+//!    as they are; the body with every joint's tolerance widened by [`JOINT_SLACK_MM`] (and,
+//!    for a template take, every segment marker's by [`SHAPE_SLACK_MM`]: one lab's plates
+//!    differ from subject to subject) then places the others, those held as anchors (so a
+//!    loosened joint still has its sure side). Labeling starts from the first frame sure of
+//!    [`FIRST_PASS_FRACTION`] of the markers and runs forwards and backwards
+//!    ([`crate::start`]). A near-flat plate fits its shape as well turned over on its long
+//!    axis; its joints' twists tell the two apart ([`crate::pose_fit`]).
 //! 2. *Calibration on the take*: the labeled take, without the samples that break an edge to
 //!    a rigid neighbour by more than [`CALIBRATION_TOLERANCE_MM`] from the edge's median,
 //!    gives a template of this subject ([`calibrated_template`]: its rigid edges and body),
@@ -46,6 +49,17 @@ impl Body {
         let mut body = self.clone();
         for j in &mut body.joints {
             j.tolerance_mm += slack_mm;
+        }
+        body
+    }
+
+    /// The body with `slack_mm` added to every segment marker's tolerance.
+    pub fn with_shape_slack(&self, slack_mm: f64) -> Body {
+        let mut body = self.clone();
+        for seg in &mut body.segments {
+            for t in &mut seg.tolerance_mm {
+                *t += slack_mm;
+            }
         }
         body
     }
@@ -124,9 +138,19 @@ pub fn mirror_partners(names: &[locap_core::MarkerName]) -> Vec<Option<usize>> {
 /// Widening of every joint's tolerance for the first fit of another subject (mm): the
 /// template's joint centres sit where the template subject's markers put them in their
 /// segments' frames, and another subject's markers sit centimetres elsewhere on the bone.
-/// Segment shapes (marker plates, clusters) keep their own tolerances: they are the
-/// subject's markers, not the subject.
 pub const JOINT_SLACK_MM: f64 = 100.0;
+
+/// Widening of every segment marker's tolerance for the first pass over another subject
+/// when the template is a take (mm). One lab's plates are not one plate: S09_KneeltoRun02's
+/// right shank plate, labeled as its anatomy says (proximal markers farther from the ankle,
+/// anterior ones towards the toes), differs from KneeltoProne01's in its six distances by -12
+/// to +17 mm (the same four points labeled with the plate turned over on a diagonal match
+/// KneeltoProne01's shape within 6 mm). With the template's tolerances (about 10 mm) the right
+/// labels fit two of the four markers; the first pass placed the plate turned over on its
+/// long axis on two of them, and every calibration round learned that. Widened, the right
+/// labels fit, and the joints' twists refuse the turned ones ([`crate::pose_fit`]). The
+/// calibrated body that labels the take has the subject's own shapes back.
+pub const SHAPE_SLACK_MM: f64 = 15.0;
 
 /// A first fit of another subject (before calibration) starts tracking when it is sure of
 /// this share of the markers the body places: the calibrated fit that labels the take
@@ -202,7 +226,10 @@ pub fn label_calibrating(
     let body = template
         .body()
         .ok_or_else(|| LabelError::Template("the template shows no rigid segment of three markers".into()))?;
-    let loose = template.with_body(body.with_joint_slack(JOINT_SLACK_MM));
+    // A model's segment tolerances already allow for where a technician puts the markers
+    // (`crate::model`); a template take's are its own subject's plates.
+    let shape_slack = if template.is_model() { 0.0 } else { SHAPE_SLACK_MM };
+    let loose = template.with_body(body.with_joint_slack(JOINT_SLACK_MM).with_shape_slack(shape_slack));
     let loose_body = loose.body().unwrap_or(body);
     let first_pass = FitConfig { min_matched_fraction: FIRST_PASS_FRACTION, ..config.fit };
     let fit = two_stage_start(frames, &loose, body, loose_body, &first_pass)?;
