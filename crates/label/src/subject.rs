@@ -141,15 +141,14 @@ pub fn mirror_partners(names: &[locap_core::MarkerName]) -> Vec<Option<usize>> {
 pub const JOINT_SLACK_MM: f64 = 100.0;
 
 /// Widening of every segment marker's tolerance for the first pass over another subject
-/// when the template is a take (mm). One lab's plates are not one plate: S09_KneeltoRun02's
-/// right shank plate, labeled as its anatomy says (proximal markers farther from the ankle,
-/// anterior ones towards the toes), differs from KneeltoProne01's in its six distances by -12
-/// to +17 mm (the same four points labeled with the plate turned over on a diagonal match
-/// KneeltoProne01's shape within 6 mm). With the template's tolerances (about 10 mm) the right
-/// labels fit two of the four markers; the first pass placed the plate turned over on its
-/// long axis on two of them, and every calibration round learned that. Widened, the right
-/// labels fit, and the joints' twists refuse the turned ones ([`crate::pose_fit`]). The
-/// calibrated body that labels the take has the subject's own shapes back.
+/// when the template is a take (mm). One lab's plates are not one plate: another subject's
+/// plate, labeled as its anatomy says (proximal markers farther from the ankle, anterior ones
+/// towards the toes), can differ from the template's by more than the template's tolerances
+/// in its distances, while the same points labeled with the plate turned over fit the
+/// template's shape closer; the first pass then labels the plate turned over and every
+/// calibration round learns it. Widened, the right labels fit too, and the joints' twists
+/// refuse the turned ones ([`crate::pose_fit`]). The calibrated body that labels the take has
+/// the subject's own shapes back. Measurements: docs/labeling.md ("Another subject's plates").
 pub const SHAPE_SLACK_MM: f64 = 15.0;
 
 /// A first fit of another subject (before calibration) starts tracking when it is sure of
