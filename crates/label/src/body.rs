@@ -82,7 +82,8 @@ pub struct Joint {
     /// `None` where the joint turns about more axes or nothing says.
     pub hinge: Option<Hinge>,
     /// How far the joint twists the child about its own bone, and the parent about its
-    /// bone, over the template; `None` where the template does not say (a model's body).
+    /// bone, over the template (a model's: none from its rest pose); `None` where a segment's
+    /// markers sit on the joint's centre or the template does not say.
     pub twist: Option<[Twist; 2]>,
 }
 
@@ -547,7 +548,7 @@ fn learn_hinge(parent: &[Option<RigidTransform>], child: &[Option<RigidTransform
 
 /// A segment's bone direction is only defined where its markers sit at least this far from
 /// the joint's centre (mm).
-const MIN_TWIST_ARM_MM: f64 = 30.0;
+pub(crate) const MIN_TWIST_ARM_MM: f64 = 30.0;
 
 /// The twist of each segment of a joint about its bone relative to the other, over the
 /// template's frames (child first, then parent); `None` where a segment's markers sit on the

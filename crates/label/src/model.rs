@@ -30,7 +30,7 @@
 //! the take is labeled with again.
 
 use crate::LabelError;
-use crate::body::{Attached, Body, Hinge, Joint, NOISE_MM, Segment};
+use crate::body::{Attached, Body, Hinge, Joint, MIN_TWIST_ARM_MM, NOISE_MM, Segment, Twist};
 use crate::template::{Edge, RANKED_NEIGHBOURS, Template};
 use locap_core::skeleton::forward_kinematics;
 use locap_core::{MarkerName, Quat, Skeleton, Vec3};
@@ -164,6 +164,16 @@ fn plate_offsets_mm(rest_mm: &[Vec3]) -> Vec<f64> {
     (0..n).map(|i| if plate.contains(&i) { 0.0 } else { (rest_mm[i] - centre).norm() }).collect()
 }
 
+/// A model joint's twists: none at the rest pose, where every segment's frame is the
+/// model's (each bone from the joint's centre, `child_mm` / `parent_mm` in its segment's
+/// frame, to its segment's centroid, the frame's origin). The first fit's quarter turn of
+/// allowance past them covers a hip's, knee's or neck's turn about its bone and most of a
+/// shoulder's or forearm's; a plate turned over is half a turn off.
+fn rest_twist(parent_mm: Vec3, child_mm: Vec3) -> Option<[Twist; 2]> {
+    let bone = |axis: Vec3| Twist { axis, mean_rad: 0.0, half_width_rad: 0.0 };
+    Some([bone((-child_mm).try_normalize(MIN_TWIST_ARM_MM)?), bone((-parent_mm).try_normalize(MIN_TWIST_ARM_MM)?)])
+}
+
 fn model_body(skeleton: &Skeleton, markers: &[ModelMarker], axes: &[Option<Vec<Vec3>>]) -> Option<Body> {
     let rest = forward_kinematics(skeleton, &vec![Quat::identity(); skeleton.len()], Vec3::zeros());
     let joints = skeleton.joints();
@@ -234,7 +244,7 @@ fn model_body(skeleton: &Skeleton, markers: &[ModelMarker], axes: &[Option<Vec<V
             child_mm: centre - cc,
             tolerance_mm,
             hinge,
-            twist: None,
+            twist: rest_twist(centre - pc, centre - cc),
         });
     }
     let mut member = vec![None; markers.len()];
@@ -346,6 +356,14 @@ mod tests {
         assert_eq!(e.len(), RANKED_NEIGHBOURS);
         assert!(e[..2].iter().all(|e| e.neighbour <= 2 && e.std_mm <= MAX_RIGID_STD_MM));
         assert!(e[2..].iter().all(|e| e.std_mm == LOOSE_STD_MM));
+        // Every joint twists neither bone at the rest pose, each bone from the joint's centre
+        // to its segment's centroid (the frame's origin), and allows nothing beyond.
+        for j in &body.joints {
+            let [child, parent] = j.twist.expect("both segments off the joint's centre");
+            assert!((child.axis + j.child_mm.normalize()).norm() < 1e-9);
+            assert!((parent.axis + j.parent_mm.normalize()).norm() < 1e-9);
+            assert_eq!((child.mean_rad, child.half_width_rad, parent.half_width_rad), (0.0, 0.0, 0.0));
+        }
     }
 
     #[test]

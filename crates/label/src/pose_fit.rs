@@ -15,9 +15,9 @@
 //!    one; their joints tell them apart. A hinge of a model's skeleton (a knee, an elbow)
 //!    also costs the cap when the two placements turn its axis around: a rectangular plate
 //!    turned over about its long axis keeps every distance and nearly its joint centres, but
-//!    not the way its hinge points. Any joint of a body learned from a take costs the cap
-//!    when it twists either bone about its own length more than a quarter turn past the
-//!    twists the take showed (`body::Twist`): a plate turned over is half a turn off.
+//!    not the way its hinge points. Any joint costs the cap when it twists either bone about
+//!    its own length more than a quarter turn past the twists the template take showed (a
+//!    model's: its rest pose; `body::Twist`): a plate turned over is half a turn off.
 //! 3. *Sure or not*: min-marginals of the same programme say, per segment, how much worse the
 //!    best configuration with another placement of it (one giving under half of its markers
 //!    the same points, or none) would be. A segment is sure when that margin is at least [`MIN_MARGIN`]
@@ -58,9 +58,9 @@ const MAX_TRIPLES: usize = 10;
 /// nine missing markers.
 const JOINT_CAP: f64 = 9.0;
 
-/// A joint twisting a bone more than this past the twists the template showed costs the cap
-/// (radians): a knee or hip turns its bone by tens of degrees, a forearm by up to about
-/// 90 from a template's mid position; a plate turned over by half a turn.
+/// A joint twisting a bone more than this past the twists the template showed (a model's
+/// rest pose) costs the cap (radians): a knee, hip or neck turns its bone by tens of
+/// degrees, a shoulder or forearm by up to about 90; a plate turned over by half a turn.
 const TWIST_ALLOWANCE_RAD: f64 = std::f64::consts::FRAC_PI_2;
 
 /// Cost of two segments on one joint sharing a point.

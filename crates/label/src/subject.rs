@@ -22,13 +22,15 @@
 //!    gives a template of this subject ([`calibrated_template`]: its rigid edges and body),
 //!    and the take is labeled again from scratch with it (the loose template body placing
 //!    what the calibrated one lacks), so the first fit, tracking's edge costs and
-//!    re-acquisition use this subject's distances. Rounds repeat while more samples keep
-//!    their segments' distances, at most [`CALIBRATION_ROUNDS`] times. Before each
-//!    calibration, two labels of a segment that the template's shape says are exchanged are
-//!    exchanged back ([`crate::segment_swaps`]): the calibration would learn them as they are.
-//!    A segment the calibrated body leaves out is placed by the loose body in its mirror
-//!    partner's calibrated shape where the take showed that one ([`Body::with_partner_shapes`]:
-//!    this subject's left foot is its right foot mirrored, not the template's foot).
+//!    re-acquisition use this subject's distances. Rounds repeat [`CALIBRATION_ROUNDS`]
+//!    times, each from the last one's labels, and the labels of the round that keeps the most
+//!    samples' segment distances are kept (a round that keeps fewer can lead to one that keeps
+//!    more). Before each calibration, two labels of a segment that the template's shape says
+//!    are exchanged are exchanged back ([`crate::segment_swaps`]): the calibration would
+//!    learn them as they are. A segment the calibrated body leaves out is placed by the loose
+//!    body in its mirror partner's calibrated shape where the take showed that one
+//!    ([`Body::with_partner_shapes`]: this subject's left foot is its right foot mirrored,
+//!    not the template's foot).
 //!
 //! A take whose subject the template's own body fits is labeled as before: none of this
 //! runs.
@@ -156,7 +158,7 @@ pub const SHAPE_SLACK_MM: f64 = 15.0;
 /// needs [`crate::FitConfig::min_matched_fraction`] of its own.
 pub const FIRST_PASS_FRACTION: f64 = 0.4;
 
-/// Calibrations on the take at most.
+/// Calibrations on the take (fewer when a calibrated template makes no body or no sure start).
 pub const CALIBRATION_ROUNDS: usize = 4;
 
 /// A labeled sample is kept for calibration when every edge to its labeled rigid neighbours
@@ -239,15 +241,19 @@ pub fn label_calibrating(
     let mut best: Option<(usize, Adapted)> = None;
     let mut last = fit;
     // Round 0 scores the first pass; each later one labels the take again with the template
-    // calibrated on the last labels, while more samples keep their segments' distances.
+    // calibrated on the last labels; the labels that keep the most samples' segment distances
+    // are returned.
     for round in 0..=CALIBRATION_ROUNDS {
         let calibrated = calibrated_template(&labels, frames, template)?;
         let (kept, _) = labels.median_edge_consistency(frames, template, CALIBRATION_TOLERANCE_MM);
-        if best.as_ref().is_some_and(|(k, _)| kept <= *k) {
-            break;
+        // A round that keeps fewer can still be followed by one that keeps more (a segment
+        // learned in one round is placed in the next): every round runs, the best is kept.
+        if best.as_ref().is_none_or(|(k, _)| kept > *k) {
+            best = Some((
+                kept,
+                Adapted { labels: labels.clone(), fit: last.clone(), calibrated: Some(calibrated.clone()) },
+            ));
         }
-        best =
-            Some((kept, Adapted { labels: labels.clone(), fit: last.clone(), calibrated: Some(calibrated.clone()) }));
         if round == CALIBRATION_ROUNDS {
             break;
         }
