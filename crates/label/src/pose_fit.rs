@@ -508,31 +508,45 @@ mod tests {
         assert!(fit.rms_mm < 1.0);
     }
 
-    #[test]
-    fn a_hinge_turned_over_costs_the_cap() {
-        let joint = crate::body::Joint {
+    /// A joint 200 mm from the origins of both its segments' frames (each bone runs from the
+    /// centre to its segment's origin), with the given hinge and twists.
+    fn joint_between_origins(
+        hinge: Option<crate::body::Hinge>,
+        twist: Option<[crate::body::Twist; 2]>,
+    ) -> crate::body::Joint {
+        crate::body::Joint {
             parent: 0,
             child: 1,
             parent_mm: Vec3::new(0.0, -200.0, 0.0),
             child_mm: Vec3::new(0.0, 200.0, 0.0),
             tolerance_mm: 50.0,
-            hinge: Some(crate::body::Hinge::shared(Vec3::z())),
-            twist: None,
-        };
+            hinge,
+            twist,
+        }
+    }
+
+    /// The parent at the world's origin, and the child turned by `rotation` with its joint
+    /// centre where the parent puts it.
+    fn parent_and_child(rotation: Rotation3<f64>) -> (Candidate, Candidate) {
         let at = |rotation: Rotation3<f64>, translation: Vec3| Candidate {
             pose: Some(RigidTransform { rotation, translation }),
             points: vec![],
             cost: 0.0,
         };
-        let parent = at(Rotation3::identity(), Vec3::zeros());
+        let centre = Vec3::new(0.0, -200.0, 0.0);
+        (at(Rotation3::identity(), Vec3::zeros()), at(rotation, centre - rotation * Vec3::new(0.0, 200.0, 0.0)))
+    }
+
+    #[test]
+    fn a_hinge_turned_over_costs_the_cap() {
+        let joint = joint_between_origins(Some(crate::body::Hinge::shared(Vec3::z())), None);
         // Bent 100 degrees about the hinge, the centre where the parent puts it: free.
         let bend = Rotation3::from_euler_angles(0.0, 0.0, 100f64.to_radians());
-        let bent = at(bend, Vec3::new(0.0, -200.0, 0.0) - bend * Vec3::new(0.0, 200.0, 0.0));
+        let (parent, bent) = parent_and_child(bend);
         assert!(joint_cost(&joint, &parent, &bent) < 1e-9);
         // The same child turned over about its long axis (a plate's front and back swapped):
         // the centre stays, the axis points the other way.
-        let over = bend * Rotation3::from_euler_angles(0.0, std::f64::consts::PI, 0.0);
-        let turned = at(over, Vec3::new(0.0, -200.0, 0.0) - over * Vec3::new(0.0, 200.0, 0.0));
+        let (_, turned) = parent_and_child(bend * Rotation3::from_euler_angles(0.0, std::f64::consts::PI, 0.0));
         assert!((joint_cost(&joint, &parent, &turned) - JOINT_CAP).abs() < 1e-9);
         let no_hinge = crate::body::Joint { hinge: None, ..joint };
         assert!(joint_cost(&no_hinge, &parent, &turned) < 1e-9);
@@ -540,9 +554,8 @@ mod tests {
 
     #[test]
     fn a_bone_twisted_past_the_templates_turns_costs_the_cap() {
-        // A ball joint (no hinge) bent 100 degrees across its bones, each bone running from
-        // the joint's centre to its segment's origin; the template showed it within 0.3 rad of
-        // that pose's twists.
+        // A ball joint (no hinge) bent 100 degrees across its bones; the template showed it
+        // within 0.3 rad of that pose's twists.
         let bend = Rotation3::from_euler_angles(0.0, 0.0, 100f64.to_radians());
         let (child_axis, parent_axis) = (-Vec3::y(), Vec3::y());
         let seen = |axis: Vec3, relative: Rotation3<f64>| crate::body::Twist {
@@ -550,33 +563,12 @@ mod tests {
             mean_rad: crate::body::Twist::angle(&axis, &relative),
             half_width_rad: 0.3,
         };
-        let joint = crate::body::Joint {
-            parent: 0,
-            child: 1,
-            parent_mm: Vec3::new(0.0, -200.0, 0.0),
-            child_mm: Vec3::new(0.0, 200.0, 0.0),
-            tolerance_mm: 50.0,
-            hinge: None,
-            twist: Some([seen(child_axis, bend), seen(parent_axis, bend.inverse())]),
-        };
-        let at = |rotation: Rotation3<f64>| Candidate {
-            pose: Some(RigidTransform {
-                rotation,
-                translation: Vec3::new(0.0, -200.0, 0.0) - rotation * Vec3::new(0.0, 200.0, 0.0),
-            }),
-            points: vec![],
-            cost: 0.0,
-        };
-        let parent = Candidate {
-            pose: Some(RigidTransform { rotation: Rotation3::identity(), translation: Vec3::zeros() }),
-            points: vec![],
-            cost: 0.0,
-        };
+        let joint = joint_between_origins(None, Some([seen(child_axis, bend), seen(parent_axis, bend.inverse())]));
         // Twisted 0.2 rad more on its bone: within what was seen.
-        let bent = at(bend * Rotation3::from_euler_angles(0.0, 0.2, 0.0));
+        let (parent, bent) = parent_and_child(bend * Rotation3::from_euler_angles(0.0, 0.2, 0.0));
         assert!(joint_cost(&joint, &parent, &bent) < 1e-9);
         // Turned over on its bone: the centres agree, the twist is half a turn off.
-        let turned = at(bend * Rotation3::from_euler_angles(0.0, std::f64::consts::PI, 0.0));
+        let (_, turned) = parent_and_child(bend * Rotation3::from_euler_angles(0.0, std::f64::consts::PI, 0.0));
         assert!((joint_cost(&joint, &parent, &turned) - JOINT_CAP).abs() < 1e-9);
         let untold = crate::body::Joint { twist: None, ..joint };
         assert!(joint_cost(&untold, &parent, &turned) < 1e-9);
