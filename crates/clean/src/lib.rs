@@ -24,6 +24,8 @@
 //! - baselines to measure it against, run on the same gaps: [`FillMethod::Linear`],
 //!   [`FillMethod::Spline`] (cubic), [`FillMethod::Pca`] (Gløersen & Federolf 2016) and
 //!   [`FillMethod::Rigid`] (the rigid-body fill of Vicon and QTM, from 3 neighbours);
+//! - [`FillMethod::PcaAligned`]: the same PCA on coordinates turned, frame by frame, into the
+//!   frame of the gap's neighbourhood ([`baseline::pca`], "Aligned frame");
 //! - [`FillMethod::Auto`] ([`auto`]): per gap, the method or blend of methods that filled
 //!   trial gaps of the same length, hidden where the marker is captured in the same take, best.
 //!
@@ -64,7 +66,7 @@ pub use stage::{CleanConfig, Cleaned, MarkerReport, clean, clean_with};
 
 /// A gap-filling method.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
+#[serde(rename_all = "kebab-case")]
 pub enum FillMethod {
     /// Locality EDM fill (LocalMoCap section 3.1, Eq. 1-2): distances to the most stable
     /// neighbours interpolated across the gap, MDS, Procrustes.
@@ -75,6 +77,9 @@ pub enum FillMethod {
     Spline,
     /// PCA over all markers (Gløersen & Federolf 2016).
     Pca,
+    /// The same PCA in a frame that turns with the marker's neighbourhood
+    /// ([`baseline::pca::PcaFrame::Aligned`]): locap's, not the paper's.
+    PcaAligned,
     /// Rigid-body fill from the 3 best neighbours (Vicon / QTM "rigid body" fill).
     Rigid,
     /// Per gap, the method (or blend) that filled trial gaps of the same length in the same
@@ -85,8 +90,14 @@ pub enum FillMethod {
 impl FillMethod {
     /// The single methods, the paper's first ([`FillMethod::Auto`] chooses among them and is
     /// not listed).
-    pub const ALL: [FillMethod; 5] =
-        [FillMethod::Edm, FillMethod::Linear, FillMethod::Spline, FillMethod::Pca, FillMethod::Rigid];
+    pub const ALL: [FillMethod; 6] = [
+        FillMethod::Edm,
+        FillMethod::Linear,
+        FillMethod::Spline,
+        FillMethod::Pca,
+        FillMethod::PcaAligned,
+        FillMethod::Rigid,
+    ];
 
     /// Lower-case name, as on the command line.
     pub fn name(self) -> &'static str {
@@ -95,6 +106,7 @@ impl FillMethod {
             FillMethod::Linear => "linear",
             FillMethod::Spline => "spline",
             FillMethod::Pca => "pca",
+            FillMethod::PcaAligned => "pca-aligned",
             FillMethod::Rigid => "rigid",
             FillMethod::Auto => "auto",
         }
@@ -166,6 +178,7 @@ fn fill_with_method(take: &Take, config: &FillConfig) -> Filled {
         FillMethod::Linear => baseline::linear::fill(take),
         FillMethod::Spline => baseline::spline::fill(take),
         FillMethod::Pca => baseline::pca::fill(take, &baseline::pca::PcaConfig::default()),
+        FillMethod::PcaAligned => baseline::pca::fill(take, &baseline::pca::PcaConfig::aligned()),
         FillMethod::Rigid => baseline::rigid::fill(take, config.selection),
         FillMethod::Auto => auto::fill(take, &auto::AutoConfig::from_fill(config)).filled,
     }

@@ -24,7 +24,7 @@ fn main() -> anyhow::Result<()> {
     let only = option("--only");
     let truth = fill_lengths::labeled_only(&locap_io::c3d::read_path(std::path::Path::new(path))?.to_take()?);
     let config = LengthsConfig { seed, per_length, ..LengthsConfig::default() };
-    let methods = [FillMethod::Edm, FillMethod::Pca, FillMethod::Rigid, FillMethod::Spline, FillMethod::Linear];
+    let methods = [FillMethod::Edm, FillMethod::PcaAligned, FillMethod::Rigid, FillMethod::Spline, FillMethod::Linear];
     println!(
         "| gap | marker | frames | chose | auto | {} | trials: {} |",
         methods.map(|m| m.name()).join(" | "),

@@ -35,6 +35,11 @@ pub const DEFAULT_LENGTHS_S: [f64; 4] = [0.1, 0.5, 1.0, 2.0];
 /// The limb gap's markers where a take has them (CMU / HDM05 left forearm).
 pub const NAMED_LIMB: [&str; 3] = ["LFRM", "LWRA", "LWRB"];
 
+/// The rows the ratio column compares against: the published and industry fills locap
+/// reimplements (the baselines), not locap's own methods (`auto`, `pca-aligned`, a
+/// learned refiner).
+pub const BASELINES: [&str; 6] = ["edm", "edm-nearest", "linear", "spline", "pca", "rigid"];
+
 /// Length of the limb gap, seconds.
 pub const LIMB_S: f64 = 1.0;
 
@@ -450,15 +455,17 @@ impl LengthsReport {
             if !take.limb_markers.is_empty() {
                 header += " multi limb |";
             }
-            header += " **multi** | single / best other | multi / best other | unfilled | time s | time / edm |\n";
+            header +=
+                " **multi** | single / best baseline | multi / best baseline | unfilled | time s | time / edm |\n";
             out += &header;
             out += &format!("|{}\n", "---|".repeat(header.matches('|').count() - 1));
             let edm = take.rows.iter().find(|r| r.method == "edm").map(|r| r.seconds);
+            // Against the best baseline other than the row itself.
             let best_other = |k: usize, pick: fn(&LengthsRow) -> f64| {
                 take.rows
                     .iter()
                     .enumerate()
-                    .filter(|(j, _)| *j != k)
+                    .filter(|(j, r)| *j != k && BASELINES.contains(&r.method.as_str()))
                     .map(|(_, r)| pick(r))
                     .fold(f64::INFINITY, f64::min)
             };

@@ -29,12 +29,15 @@ fn fill_method(name: &str) -> PyResult<(FillMethod, bool)> {
         "linear" => (FillMethod::Linear, false),
         "spline" => (FillMethod::Spline, false),
         "pca" => (FillMethod::Pca, false),
+        "pca-aligned" => (FillMethod::PcaAligned, false),
         "rigid" => (FillMethod::Rigid, false),
         "auto" => (FillMethod::Auto, false),
         // The refiner starts from EDM's fill.
         "neural" => (FillMethod::Edm, true),
         other => {
-            return Err(usage(format!("method {other:?}: one of edm, linear, spline, pca, rigid, auto, neural")));
+            return Err(usage(format!(
+                "method {other:?}: one of edm, linear, spline, pca, pca-aligned, rigid, auto, neural"
+            )));
         }
     })
 }

@@ -71,6 +71,8 @@ pub enum Method {
     Spline,
     /// PCA over all markers (Gløersen & Federolf 2016).
     Pca,
+    /// The same PCA in a frame that turns with the gap's neighbourhood (locap's).
+    PcaAligned,
     /// Rigid-body fill from 3 neighbours.
     Rigid,
     /// Per gap, the method (or blend) that filled trial gaps of the same length best in this
@@ -89,6 +91,7 @@ impl From<Method> for FillMethod {
             Method::Linear => FillMethod::Linear,
             Method::Spline => FillMethod::Spline,
             Method::Pca => FillMethod::Pca,
+            Method::PcaAligned => FillMethod::PcaAligned,
             Method::Rigid => FillMethod::Rigid,
             Method::Auto => FillMethod::Auto,
         }
