@@ -19,11 +19,11 @@ fn read(relative: &str) -> Option<Take> {
 }
 
 /// On takes no constant of [`AutoConfig`] was chosen on, auto's RMSE over the hidden samples
-/// is no worse than 1.05 times the best single method's: CMU 135_02 (another subject) and
-/// HDM05 (another lab), single and multi inputs. Every gap is recorded, with the samples it
-/// filled.
+/// is at most the 0.8 times the best baseline's (EDM, the paper's PCA, rigid,
+/// spline): CMU 135_02 (another subject) and HDM05 (another lab), single and multi inputs
+/// (measured 0.46 / 0.33 and 0.55 / 0.65). Every gap is recorded, with the samples it filled.
 #[test]
-fn auto_is_no_worse_than_the_best_single_method_on_held_out_takes() {
+fn auto_beats_the_best_baseline_by_a_fifth_on_held_out_takes() {
     let Some(cmu) = read("cmu-c3d/135_02.c3d") else { return };
     let Some(hdm) = read("hdm05-c3d/HDM_bd_05-01_01_120.c3d") else { return };
     let auto = AutoConfig::default();
@@ -47,7 +47,7 @@ fn auto_is_no_worse_than_the_best_single_method_on_held_out_takes() {
         assert_eq!(got.unfilled, 0, "{}: auto left hidden samples missing", t.take);
         let best = t.rows[1..].iter().map(|r| score(r).overall_mm).fold(f64::INFINITY, f64::min);
         assert!(
-            got.overall_mm <= 1.05 * best,
+            got.overall_mm <= 0.8 * best,
             "{} multi={multi}: auto {:.1} mm, best {best:.1} mm",
             t.take,
             got.overall_mm
