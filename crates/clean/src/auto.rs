@@ -98,8 +98,14 @@ use std::ops::Range;
 pub const CHECKED_NEIGHBOURS: usize = 3;
 
 /// The candidates, in the order ties are broken.
-pub const CANDIDATES: [FillMethod; 5] =
-    [FillMethod::Edm, FillMethod::PcaAligned, FillMethod::Rigid, FillMethod::Spline, FillMethod::Linear];
+pub const CANDIDATES: [FillMethod; 6] = [
+    FillMethod::Edm,
+    FillMethod::PcaAligned,
+    FillMethod::Rigid,
+    FillMethod::RigidSpline,
+    FillMethod::Spline,
+    FillMethod::Linear,
+];
 
 /// Smallest RMSE (mm) used for a blend weight: a trial filled exactly does not take all the
 /// weight on the strength of a few samples.
@@ -136,6 +142,11 @@ pub struct AutoConfig {
     /// every gap: the trials already reject them on long gaps (a limit of a quarter second
     /// changed no choice on the take the defaults were chosen on).
     pub interpolate_s: f64,
+    /// Longest gap (seconds) the rigid fill with its relative position splined
+    /// ([`FillMethod::RigidSpline`]) is a candidate for: like any spline it drifts over long
+    /// gaps, and on the real occlusion statistics it is the best single method up to 60
+    /// frames at 120 Hz and worse than the plain rigid fill beyond.
+    pub rigid_spline_s: f64,
     /// Neighbours of the marker in the sub-takes of EDM, rigid, spline and linear.
     pub markers: usize,
     /// Most markers (the gap's marker included) the PCA candidate sees, nearest first
@@ -172,6 +183,7 @@ impl Default for AutoConfig {
             pca_context_s: 30.0,
             pca_fit_frames: 500,
             interpolate_s: 100.0,
+            rigid_spline_s: 0.5,
             markers: 10,
             pca_markers: usize::MAX,
             edm_neighbours: 6,
@@ -346,8 +358,13 @@ impl Context<'_> {
         let local = self.local_markers(marker, gap.start..gap.end(), &captured);
         let wide = self.pca_markers(marker);
         let interpolates = gap.len as f64 <= self.config.interpolate_s * self.take.frame_rate_hz();
-        let candidates: &[FillMethod] =
-            if edge == Edge::Inside && interpolates { &CANDIDATES } else { &CANDIDATES[..3] };
+        let rigid_spline = gap.len as f64 <= self.config.rigid_spline_s * self.take.frame_rate_hz();
+        let candidates: Vec<FillMethod> = if edge == Edge::Inside && interpolates {
+            CANDIDATES.iter().copied().filter(|c| rigid_spline || *c != FillMethod::RigidSpline).collect()
+        } else {
+            CANDIDATES[..3].to_vec()
+        };
+        let candidates = candidates.as_slice();
         let reference = if edge == Edge::Inside { FillMethod::Linear } else { FillMethod::Edm };
         // Error vectors per candidate over the trials' hidden samples.
         let mut errors: Vec<Vec<Vec3>> = vec![Vec::new(); candidates.len()];
@@ -646,6 +663,9 @@ impl Context<'_> {
                 baseline::pca::fill_marker(&window.take, 0, first..first + range.len(), &config)
             }
             FillMethod::Rigid => baseline::rigid::fill(&window.take, config.selection),
+            FillMethod::RigidSpline => {
+                baseline::rigid::fill_across(&window.take, config.selection, baseline::rigid::Across::Spline)
+            }
             FillMethod::Spline => baseline::spline::fill(&window.take),
             FillMethod::Linear => baseline::linear::fill(&window.take),
             // Not a candidate: the per-gap choice does not recurse.

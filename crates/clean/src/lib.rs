@@ -82,6 +82,9 @@ pub enum FillMethod {
     PcaAligned,
     /// Rigid-body fill from the 3 best neighbours (Vicon / QTM "rigid body" fill).
     Rigid,
+    /// The rigid-body fill with the marker's position relative to its donors splined across
+    /// the gap ([`baseline::rigid::Across::Spline`]): locap's, for short gaps.
+    RigidSpline,
     /// Per gap, the method (or blend) that filled trial gaps of the same length in the same
     /// take best ([`auto`]).
     Auto,
@@ -90,13 +93,14 @@ pub enum FillMethod {
 impl FillMethod {
     /// The single methods, the paper's first ([`FillMethod::Auto`] chooses among them and is
     /// not listed).
-    pub const ALL: [FillMethod; 6] = [
+    pub const ALL: [FillMethod; 7] = [
         FillMethod::Edm,
         FillMethod::Linear,
         FillMethod::Spline,
         FillMethod::Pca,
         FillMethod::PcaAligned,
         FillMethod::Rigid,
+        FillMethod::RigidSpline,
     ];
 
     /// Lower-case name, as on the command line.
@@ -108,6 +112,7 @@ impl FillMethod {
             FillMethod::Pca => "pca",
             FillMethod::PcaAligned => "pca-aligned",
             FillMethod::Rigid => "rigid",
+            FillMethod::RigidSpline => "rigid-spline",
             FillMethod::Auto => "auto",
         }
     }
@@ -180,6 +185,9 @@ fn fill_with_method(take: &Take, config: &FillConfig) -> Filled {
         FillMethod::Pca => baseline::pca::fill(take, &baseline::pca::PcaConfig::default()),
         FillMethod::PcaAligned => baseline::pca::fill(take, &baseline::pca::PcaConfig::aligned()),
         FillMethod::Rigid => baseline::rigid::fill(take, config.selection),
+        FillMethod::RigidSpline => {
+            baseline::rigid::fill_across(take, config.selection, baseline::rigid::Across::Spline)
+        }
         FillMethod::Auto => auto::fill(take, &auto::AutoConfig::from_fill(config)).filled,
     }
 }

@@ -11,6 +11,14 @@
 //!    later border `(t - s + 1) / (e - s + 1)`), so the fill meets both borders exactly; a
 //!    gap touching the take's start or end uses its one border.
 //!
+//! [`Across::Spline`] (locap's, [`crate::FillMethod::RigidSpline`]) replaces step 3: the
+//! marker's position in the donors' frame (their positions at the first border as reference)
+//! at up to [`super::spline::WINDOW`] frames each side where it and every donor are captured
+//! is interpolated by a natural cubic spline, and carried with the donors through the gap.
+//! The spline follows what the marker does relative to its segment near the gap (skin and
+//! joint motion), which the linear blend cuts off at the borders; over long gaps it drifts as
+//! any spline does, so it is one of the per-gap choice's candidates, never a default.
+//!
 //! On a truly rigid cluster the fill is exact. Fewer than 3 usable donors leaves the whole
 //! gap missing, as the commercial tools do; no donor may be a filled sample. The commercial
 //! tools let the user pick the donors; here the locality ranking picks them.
@@ -27,20 +35,35 @@ pub const DONORS: usize = 3;
 /// How many of the best-ranked usable neighbours are searched for a non-collinear triple.
 const SEARCH: usize = 8;
 
+/// How the marker's position relative to its donors goes from one border to the other.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Across {
+    /// Linearly between the two borders (the commercial tools').
+    Linear,
+    /// A natural cubic spline through the frames around the gap, as [`super::spline`] runs on
+    /// the marker's coordinates, here on its coordinates in the donors' frame (locap's).
+    Spline,
+}
+
 /// Fills every gap of every marker of `take` by the rigid-body method, donors ranked by
 /// `selection`.
 pub fn fill(take: &Take, selection: Selection) -> Filled {
+    fill_across(take, selection, Across::Linear)
+}
+
+/// [`fill`] with the donors' frame carrying the marker's relative position `across` the gap.
+pub fn fill_across(take: &Take, selection: Selection, across: Across) -> Filled {
     let ranked = neighbours::rank(take, selection);
     let mut out = Filled::unchanged(take);
     for (marker, ranked) in ranked.iter().enumerate() {
         for gap in gaps_of((0..take.frame_count()).map(|f| take.is_valid(f, marker))) {
-            fill_gap(take, &mut out, marker, gap, ranked);
+            fill_gap(take, &mut out, marker, gap, ranked, across);
         }
     }
     out
 }
 
-fn fill_gap(take: &Take, out: &mut Filled, marker: usize, gap: Gap, ranked: &[usize]) {
+fn fill_gap(take: &Take, out: &mut Filled, marker: usize, gap: Gap, ranked: &[usize], across: Across) {
     let (before, after) = borders(gap.start, gap.end(), take.frame_count());
     let borders: Vec<(usize, Vec3)> = [before, after]
         .into_iter()
@@ -66,6 +89,10 @@ fn fill_gap(take: &Take, out: &mut Filled, marker: usize, gap: Gap, ranked: &[us
     else {
         return;
     };
+    if borders.len() == 2 && across == Across::Spline {
+        spline_in_donor_frame(take, out, marker, gap, &donors, borders[0].0, borders[1].0);
+        return;
+    }
     let reference: Vec<(Vec<Vec3>, Vec3)> = borders.iter().map(|(b, p)| (positions(&donors, *b), *p)).collect();
     for t in gap.start..gap.end() {
         let now = positions(&donors, t);
@@ -83,6 +110,42 @@ fn fill_gap(take: &Take, out: &mut Filled, marker: usize, gap: Gap, ranked: &[us
             _ => continue,
         };
         put(out, t, marker, p);
+    }
+}
+
+/// The marker's position in the frame of `donors` (their positions at `before` as reference),
+/// splined through up to [`super::spline::WINDOW`] frames each side where the marker and every
+/// donor are captured, carried with the donors through the gap.
+fn spline_in_donor_frame(
+    take: &Take,
+    out: &mut Filled,
+    marker: usize,
+    gap: Gap,
+    donors: &[usize; 3],
+    before: usize,
+    after: usize,
+) {
+    let positions = |f: usize| -> Option<Vec<Vec3>> { donors.iter().map(|j| take.position_mm(f, *j)).collect() };
+    let Some(reference) = positions(before) else { return };
+    let local = |f: usize| -> Option<Vec3> {
+        let p = take.position_mm(f, marker)?;
+        let t = procrustes::align(&reference, &positions(f)?)?;
+        Some(t.rotation.inverse() * (p - t.translation))
+    };
+    let window = super::spline::WINDOW;
+    let mut left: Vec<(f64, Vec3)> =
+        (0..=before).rev().filter_map(|f| Some((f as f64, local(f)?))).take(window).collect();
+    left.reverse();
+    let right: Vec<(f64, Vec3)> =
+        (after..take.frame_count()).filter_map(|f| Some((f as f64, local(f)?))).take(window).collect();
+    if left.is_empty() || right.is_empty() {
+        return;
+    }
+    let spline = super::spline::NaturalSpline::new(left.into_iter().chain(right).collect());
+    for t in gap.start..gap.end() {
+        let Some(now) = positions(t) else { continue };
+        let Some(transform) = procrustes::align(&reference, &now) else { continue };
+        put(out, t, marker, transform.apply(&spline.at(t as f64)));
     }
 }
 
@@ -129,6 +192,47 @@ mod tests {
                 let d = out.take.position_mm(f, m).unwrap() - truth.position_mm(f, m).unwrap();
                 assert!(d.norm() < 1e-6, "frame {f} marker {m}: {d:?}");
             }
+        }
+    }
+
+    /// The rigid cluster of [`rigid`] with marker 0 sliding on it (skin over a segment): the
+    /// linear blend of the two borders cuts its curved slide short, the spline in the donors'
+    /// frame follows it; on the rigid cluster alone both are exact.
+    #[test]
+    fn the_spline_follows_a_marker_sliding_on_its_segment() {
+        let sliding = |frames: usize| {
+            let body = rigid(frames);
+            take_from(frames, OFFSETS.len(), |f, m| {
+                let p = body.position_mm(f, m).unwrap();
+                if m != 0 {
+                    return p;
+                }
+                // Along the cluster's own first axis (marker 1's offset), in a parabola.
+                let a = f as f64 * 0.03;
+                let rot = nalgebra::Rotation3::from_euler_angles(0.3 * a, a, 0.5 * a.sin());
+                let slide = 20.0 * ((f as f64 - 100.0) / 40.0).powi(2);
+                p + rot * Vec3::new(slide, 0.0, 0.0)
+            })
+        };
+        let truth = sliding(200);
+        let mut holed = truth.clone();
+        hide(&mut holed, 0, 90..110);
+        let error = |out: &Filled| -> f64 {
+            (90..110)
+                .map(|f| (out.take.position_mm(f, 0).unwrap() - truth.position_mm(f, 0).unwrap()).norm())
+                .sum::<f64>()
+                / 20.0
+        };
+        let splined = fill_across(&holed, Selection::Variance, Across::Spline);
+        assert_eq!(check_mask(&holed, &splined), 20);
+        let (splined, linear) = (error(&splined), error(&fill(&holed, Selection::Variance)));
+        assert!(splined < 0.01 && linear > 0.5, "spline {splined} mm, linear {linear} mm");
+        let truth = rigid(200);
+        let mut holed = truth.clone();
+        hide(&mut holed, 0, 90..110);
+        let out = fill_across(&holed, Selection::Variance, Across::Spline);
+        for f in 90..110 {
+            assert!((out.take.position_mm(f, 0).unwrap() - truth.position_mm(f, 0).unwrap()).norm() < 1e-6);
         }
     }
 

@@ -75,6 +75,9 @@ pub enum Method {
     PcaAligned,
     /// Rigid-body fill from 3 neighbours.
     Rigid,
+    /// The rigid-body fill with the marker's position relative to its neighbours splined
+    /// across the gap (locap's, for short gaps).
+    RigidSpline,
     /// Per gap, the method (or blend) that filled trial gaps of the same length best in this
     /// take; recorded per gap in LOCAP:FILLS.
     Auto,
@@ -93,6 +96,7 @@ impl From<Method> for FillMethod {
             Method::Pca => FillMethod::Pca,
             Method::PcaAligned => FillMethod::PcaAligned,
             Method::Rigid => FillMethod::Rigid,
+            Method::RigidSpline => FillMethod::RigidSpline,
             Method::Auto => FillMethod::Auto,
         }
     }
