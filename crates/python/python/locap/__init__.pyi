@@ -113,7 +113,7 @@ def clean(
 ) -> Take:
     """``locap clean``: swaps undone, outliers removed and refilled, gaps filled.
 
-    ``method``: edm, linear, spline, pca, pca-aligned, rigid, auto or neural (``models``: refiner files).
+    ``method``: edm, linear, spline, pca, pca-aligned, rigid, rigid-spline, auto or neural (``models``: refiner files).
     """
 
 def label(
