@@ -25,6 +25,7 @@
 //!    defeats a method that learned from the rest of the take (PCA on a short take), and a
 //!    short take may have no window of the gap's length to spare;
 //! 2. every candidate ([`FillMethod::Edm`], [`FillMethod::PcaAligned`], [`FillMethod::Rigid`],
+//!    [`FillMethod::RigidSpline`] for gaps up to [`AutoConfig::rigid_spline_s`],
 //!    [`FillMethod::Spline`], [`FillMethod::Linear`]) fills each trial; each is scored by its
 //!    RMSE over the hidden samples of `i`, pooled over the trials. A sample a candidate leaves
 //!    missing counts with the error of the reference candidate there (linear inside the take,
@@ -78,6 +79,10 @@
 //!   cost more. The frame's weights are the PCA's own (no parameter of its own); the change
 //!   was measured on all four takes of the tuning set, so its held-out evidence is another
 //!   lab's takes (numediart, the 62-marker set) and the real occlusion statistics.
+//! - The rigid fill with a spline in the donors' frame ([`FillMethod::RigidSpline`]) is a
+//!   candidate for gaps up to half a second only: on the real occlusion statistics it is the
+//!   best single method up to 60 frames at 120 Hz and worse than the plain rigid fill beyond,
+//!   and as a candidate for every length the trials of long gaps sometimes ranked it first.
 //! - Every constant of [`AutoConfig::default`] and [`default_ranking`] was chosen on CMU
 //!   subject 85 (85_12; the neighbour trials on 85_12 and the short 85_02), with protocol
 //!   seeds other than the one reported; another subject (CMU 135_02) and another lab (HDM05)
