@@ -596,6 +596,34 @@ mod tests {
         assert!(aligned < paper / 3.0, "aligned {aligned} mm, paper's frame {paper} mm");
     }
 
+    proptest::proptest! {
+        /// A rigid body under any motion is constant in the aligned frame, so every gap of any
+        /// of its markers is filled exactly, whatever the turns (the paper's frame cannot).
+        #[test]
+        fn the_aligned_frame_fills_a_rigid_body_exactly(
+            spin in proptest::array::uniform3(-0.2f64..0.2),
+            drift in proptest::array::uniform3(-20.0f64..20.0),
+            marker in 0usize..6,
+            start in 1usize..150,
+            len in 1usize..45,
+        ) {
+            let shape = [[0.0, 0.0, 0.0], [120.0, 10.0, 0.0], [0.0, 90.0, 30.0], [40.0, 40.0, 110.0], [-70.0, 20.0, 50.0], [30.0, -80.0, 60.0]];
+            let truth = take_from(200, shape.len(), |t, m| {
+                let a = t as f64;
+                let turn = Rotation3::from_euler_angles(spin[0] * a, spin[1] * a, spin[2] * (0.05 * a).sin() * 10.0);
+                Vec3::from(drift) * a + turn * Vec3::from(shape[m])
+            });
+            let mut holed = truth.clone();
+            hide(&mut holed, marker, start..start + len);
+            let out = fill(&holed, &PcaConfig::aligned());
+            proptest::prop_assert_eq!(check_mask(&holed, &out), len);
+            for f in start..start + len {
+                let e = (out.take.position_mm(f, marker).unwrap() - truth.position_mm(f, marker).unwrap()).norm();
+                proptest::prop_assert!(e < 1e-6, "frame {}: {} mm", f, e);
+            }
+        }
+    }
+
     #[test]
     fn component_count() {
         assert_eq!(components(&[9.0, 0.9, 0.1], 0.99), 2);
