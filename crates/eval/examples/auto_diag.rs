@@ -10,7 +10,7 @@
 //! method run once on it).
 
 use locap_clean::auto::{self, AutoConfig};
-use locap_clean::{FillConfig, FillMethod, fill_gaps};
+use locap_clean::{FillConfig, fill_gaps};
 use locap_eval::fill_lengths::{self, LengthsConfig};
 
 fn main() -> anyhow::Result<()> {
@@ -24,7 +24,7 @@ fn main() -> anyhow::Result<()> {
     let only = option("--only");
     let truth = fill_lengths::labeled_only(&locap_io::c3d::read_path(std::path::Path::new(path))?.to_take()?);
     let config = LengthsConfig { seed, per_length, ..LengthsConfig::default() };
-    let methods = [FillMethod::Edm, FillMethod::PcaAligned, FillMethod::Rigid, FillMethod::Spline, FillMethod::Linear];
+    let methods = locap_clean::auto::CANDIDATES;
     println!(
         "| gap | marker | frames | chose | auto | {} | trials: {} |",
         methods.map(|m| m.name()).join(" | "),
