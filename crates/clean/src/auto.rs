@@ -27,7 +27,7 @@
 //! 2. every candidate ([`FillMethod::Edm`], [`FillMethod::PcaAligned`], [`FillMethod::Rigid`],
 //!    [`FillMethod::RigidSpline`] for gaps up to [`AutoConfig::rigid_spline_s`],
 //!    [`FillMethod::Spline`], [`FillMethod::Linear`]) fills each trial; each is scored by its
-//!    RMSE over the hidden samples of `i`, pooled over the trials. A sample a candidate leaves
+//!    RMSE over the hidden samples of `i`, pooled over the trials ([`TrialScore::Pooled`]). A sample a candidate leaves
 //!    missing counts with the error of the reference candidate there (linear inside the take,
 //!    EDM at its edges), the fill it would fall back to;
 //! 3. the real gap is filled with the inverse-squared-RMSE blend of the best
@@ -64,6 +64,10 @@
 //! is trusted beyond the point where the marker's neighbours stop riding with it.
 //!
 //! # Choices made
+//! - A candidate's trials are pooled into one RMSE, so one trial where it failed can decide
+//!   its rank. The mean and the median of the trials' RMSEs ([`TrialScore`], kept as
+//!   options) were measured against it (docs/benchmarks.md): neither was better on every
+//!   held-out input.
 //! - Blend of the best two by inverse squared trial RMSE. Blending fills with partly
 //!   independent errors beats either: the best alone was measured worse; the best three, and
 //!   the least-squares combination of the candidates' trial errors (Bates & Granger 1969,
@@ -126,6 +130,19 @@ pub enum Weighting {
     LeastSquares,
 }
 
+/// How a candidate's trial errors make its score.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum TrialScore {
+    /// The RMSE over every trial's hidden samples pooled: one trial's failure can decide.
+    Pooled,
+    /// The mean over the trials of each trial's RMSE: every trial counts once.
+    MeanOfTrials,
+    /// The median over the trials of each trial's RMSE: a failure in a minority of trials
+    /// does not count.
+    MedianOfTrials,
+}
+
 /// Settings of [`fill`] (a setting missing from a serialized config takes its default).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(default)]
@@ -136,6 +153,9 @@ pub struct AutoConfig {
     pub blend: usize,
     /// How they are weighted.
     pub weighting: Weighting,
+    /// How each candidate's trial errors are scored (the ranking and the inverse-square
+    /// weights).
+    pub score: TrialScore,
     /// Frames of context on each side of a gap, in seconds (at least the gap's length is used).
     pub context_s: f64,
     /// Frames of context of the PCA candidate on each side, in seconds: its covariance gains
@@ -184,6 +204,7 @@ impl Default for AutoConfig {
             trials: 3,
             blend: 2,
             weighting: Weighting::InverseSquare,
+            score: TrialScore::Pooled,
             context_s: 2.0,
             pca_context_s: 30.0,
             pca_fit_frames: 500,
@@ -211,7 +232,8 @@ pub struct GapChoice {
     pub weights: Vec<(FillMethod, f64)>,
     /// Trial gaps used (0: the default ranking chose).
     pub trials: usize,
-    /// Each candidate's trial RMSE in mm, best first (empty without trials).
+    /// Each candidate's trial score in mm ([`AutoConfig::score`]: by default its RMSE over
+    /// every trial's hidden samples), best first (empty without trials).
     pub trial_rmse_mm: Vec<(FillMethod, f64)>,
     /// Samples of the gap that were filled.
     pub filled: usize,
@@ -375,6 +397,7 @@ impl Context<'_> {
         let mut errors: Vec<Vec<Vec3>> = vec![Vec::new(); candidates.len()];
         // One trial: `target` hidden over `range` with `hidden`, filled on the sub-takes of
         // `target` and its neighbours by every candidate, errors added.
+        let mut bounds: Vec<usize> = vec![0];
         let mut score = |target: usize, local: &[usize], range: Range<usize>, hidden: &dyn Fn(usize, usize) -> bool| {
             let windows = self.windows(range.clone(), edge, local, &self.pca_markers(target), hidden);
             let fills: Vec<Vec<Option<Vec3>>> = candidates.iter().map(|c| self.candidate(*c, &windows)).collect();
@@ -389,6 +412,7 @@ impl Context<'_> {
                     errors[c].push(fill[k].unwrap_or(reference) - truth);
                 }
             }
+            bounds.push(errors[0].len());
         };
         let starts = self.trial_starts(marker, gap, edge);
         for &start in &starts {
@@ -413,7 +437,7 @@ impl Context<'_> {
             .iter()
             .zip(&errors)
             .filter(|(_, e)| !e.is_empty())
-            .map(|(c, e)| (*c, (e.iter().map(|v| v.norm_squared()).sum::<f64>() / e.len() as f64).sqrt()))
+            .map(|(c, e)| (*c, trial_score(e, &bounds, self.config.score)))
             .collect();
         scores.sort_by(|a, b| a.1.total_cmp(&b.1));
         let trials = if scores.is_empty() { 0 } else { starts.len() + neighbours.len() };
@@ -699,6 +723,25 @@ impl Context<'_> {
     }
 }
 
+/// A candidate's score from its errors `errors`, trial `k` being `errors[bounds[k]..bounds[k +
+/// 1]]` (trials with no scored sample are skipped).
+fn trial_score(errors: &[Vec3], bounds: &[usize], score: TrialScore) -> f64 {
+    let rms = |e: &[Vec3]| (e.iter().map(|v| v.norm_squared()).sum::<f64>() / e.len() as f64).sqrt();
+    let mut each: Vec<f64> = bounds.windows(2).filter(|w| w[1] > w[0]).map(|w| rms(&errors[w[0]..w[1]])).collect();
+    if each.is_empty() {
+        return rms(errors);
+    }
+    match score {
+        TrialScore::Pooled => rms(errors),
+        TrialScore::MeanOfTrials => each.iter().sum::<f64>() / each.len() as f64,
+        TrialScore::MedianOfTrials => {
+            each.sort_by(f64::total_cmp);
+            let n = each.len();
+            if n % 2 == 1 { each[n / 2] } else { 0.5 * (each[n / 2 - 1] + each[n / 2]) }
+        }
+    }
+}
+
 /// Frames that must be captured around a window of `len` frames from `start` for it to stand
 /// in for a gap: the window and its borders (one border at the take's edges, as the real gap
 /// has), not clipped to the take.
@@ -774,6 +817,19 @@ fn splitmix(x: u64) -> u64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn trial_scores() {
+        // Two trials: one filled 1 mm off on 4 samples, one 7 mm off on 1 sample.
+        let errors = [Vec3::new(1.0, 0.0, 0.0); 4].into_iter().chain([Vec3::new(0.0, 7.0, 0.0)]).collect::<Vec<_>>();
+        let bounds = [0, 4, 5];
+        assert!((trial_score(&errors, &bounds, TrialScore::Pooled) - (53.0f64 / 5.0).sqrt()).abs() < 1e-12);
+        assert!((trial_score(&errors, &bounds, TrialScore::MeanOfTrials) - 4.0).abs() < 1e-12);
+        assert!((trial_score(&errors, &bounds, TrialScore::MedianOfTrials) - 4.0).abs() < 1e-12);
+        // A trial with no scored sample is skipped; the odd count's median is the middle one.
+        let bounds = [0, 2, 2, 4, 5];
+        assert!((trial_score(&errors, &bounds, TrialScore::MedianOfTrials) - 1.0).abs() < 1e-12);
+    }
 
     /// Marker 0 rides a rigid cluster with markers 1-5 that moves and turns; names from `name`.
     fn cluster(frames: usize, name: impl Fn(usize) -> String) -> Take {
