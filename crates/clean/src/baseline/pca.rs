@@ -94,7 +94,7 @@ pub const MIN_COMPLETE_FRAMES: usize = 10;
 /// centroid (the mean trajectory when no marker is gap-free) cannot fix an orientation, so
 /// the nearest other captured markers are added, distal or not.
 pub const MIN_PREDICTORS: usize = 3;
-/// Most complete frames the rotated frame's mean shape is averaged over.
+/// Most complete frames the aligned frame's mean shape is averaged over.
 const REFERENCE_FRAMES: usize = 100;
 /// Frames per block when accumulating a covariance matrix.
 const BLOCK: usize = 2048;
