@@ -23,6 +23,12 @@ impl RigidTransform {
     pub fn apply(&self, p: &Vec3) -> Vec3 {
         self.rotation * p + self.translation
     }
+
+    /// Applies the inverse transform to a point: where `p` came from (`apply(apply_inverse(p))
+    /// == p`).
+    pub fn apply_inverse(&self, p: &Vec3) -> Vec3 {
+        self.rotation.inverse() * (p - self.translation)
+    }
 }
 
 /// The proper rigid motion that best maps `source[k]` onto `target[k]` in the least-squares
@@ -146,6 +152,16 @@ mod tests {
         // The set itself is mapped exactly; its mirror image is not.
         assert!(rms_error(&both[0], &source, &target) < 1e-9);
         assert!(rms_error(&both[1], &mirrored, &target) > 1.0);
+    }
+
+    #[test]
+    fn the_inverse_undoes_the_transform() {
+        let turn = Rotation3::from_axis_angle(&Unit::new_normalize(Vector3::new(0.3, -1.0, 0.5)), 0.9);
+        let t = RigidTransform { rotation: turn, translation: Vec3::new(5.0, -7.0, 300.0) };
+        for p in points() {
+            assert_relative_eq!(t.apply_inverse(&t.apply(&p)), p, epsilon = 1e-9);
+            assert_relative_eq!(t.apply(&t.apply_inverse(&p)), p, epsilon = 1e-9);
+        }
     }
 
     #[test]

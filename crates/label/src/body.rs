@@ -393,8 +393,8 @@ fn joint_centre(first: &[Option<RigidTransform>], second: &[Option<RigidTransfor
     let (mut mid_a, mut mid_b) = (Vec3::zeros(), Vec3::zeros());
     for (ta, tb) in &pairs {
         let mid = (ta.translation + tb.translation) / 2.0;
-        mid_a += ta.rotation.inverse() * (mid - ta.translation);
-        mid_b += tb.rotation.inverse() * (mid - tb.translation);
+        mid_a += ta.apply_inverse(&mid);
+        mid_b += tb.apply_inverse(&mid);
     }
     mid_a /= pairs.len() as f64;
     mid_b /= pairs.len() as f64;
@@ -593,9 +593,7 @@ fn attach(take: &Take, frames: &[usize], poses: &[Vec<Option<RigidTransform>>], 
         let local: Vec<Vec3> = frames
             .iter()
             .zip(per_frame)
-            .filter_map(|(&f, t)| {
-                Some(t.as_ref()?.rotation.inverse() * (take.position_mm(f, i)? - t.as_ref()?.translation))
-            })
+            .filter_map(|(&f, t)| Some(t.as_ref()?.apply_inverse(&take.position_mm(f, i)?)))
             .collect();
         if local.len() < 10 {
             continue;

@@ -387,7 +387,7 @@ fn project(
             let c = 3 * own + axis;
             mean[c] + x[axis] / scale[c]
         });
-        put(out, f, i, to_frame.rotation.inverse() * (local - to_frame.translation));
+        put(out, f, i, to_frame.apply_inverse(&local));
     }
 }
 

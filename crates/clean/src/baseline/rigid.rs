@@ -130,7 +130,7 @@ fn spline_in_donor_frame(
     let local = |f: usize| -> Option<Vec3> {
         let p = take.position_mm(f, marker)?;
         let t = procrustes::align(&reference, &positions(f)?)?;
-        Some(t.rotation.inverse() * (p - t.translation))
+        Some(t.apply_inverse(&p))
     };
     let window = super::spline::WINDOW;
     let mut left: Vec<(f64, Vec3)> =
