@@ -683,12 +683,12 @@ impl Context<'_> {
         let config = self.config;
         let filled = match method {
             FillMethod::Edm => edm::fill(&window.take, config.edm_neighbours, config.selection),
-            FillMethod::Pca => {
-                let config = baseline::pca::PcaConfig::default();
-                baseline::pca::fill_marker(&window.take, 0, first..first + range.len(), &config)
-            }
-            FillMethod::PcaAligned => {
-                let config = baseline::pca::PcaConfig::aligned();
+            FillMethod::Pca | FillMethod::PcaAligned => {
+                let config = if method == FillMethod::PcaAligned {
+                    baseline::pca::PcaConfig::aligned()
+                } else {
+                    baseline::pca::PcaConfig::default()
+                };
                 baseline::pca::fill_marker(&window.take, 0, first..first + range.len(), &config)
             }
             FillMethod::Rigid => baseline::rigid::fill(&window.take, config.selection),
@@ -727,17 +727,22 @@ impl Context<'_> {
 /// 1]]` (trials with no scored sample are skipped).
 fn trial_score(errors: &[Vec3], bounds: &[usize], score: TrialScore) -> f64 {
     let rms = |e: &[Vec3]| (e.iter().map(|v| v.norm_squared()).sum::<f64>() / e.len() as f64).sqrt();
-    let mut each: Vec<f64> = bounds.windows(2).filter(|w| w[1] > w[0]).map(|w| rms(&errors[w[0]..w[1]])).collect();
-    if each.is_empty() {
-        return rms(errors);
-    }
+    // Only the per-trial scores need each trial's RMSE.
+    let each = || -> Vec<f64> { bounds.windows(2).filter(|w| w[1] > w[0]).map(|w| rms(&errors[w[0]..w[1]])).collect() };
     match score {
         TrialScore::Pooled => rms(errors),
-        TrialScore::MeanOfTrials => each.iter().sum::<f64>() / each.len() as f64,
+        TrialScore::MeanOfTrials => {
+            let each = each();
+            if each.is_empty() { rms(errors) } else { each.iter().sum::<f64>() / each.len() as f64 }
+        }
         TrialScore::MedianOfTrials => {
+            let mut each = each();
             each.sort_by(f64::total_cmp);
-            let n = each.len();
-            if n % 2 == 1 { each[n / 2] } else { 0.5 * (each[n / 2 - 1] + each[n / 2]) }
+            match each.len() {
+                0 => rms(errors),
+                n if n % 2 == 1 => each[n / 2],
+                n => 0.5 * (each[n / 2 - 1] + each[n / 2]),
+            }
         }
     }
 }
