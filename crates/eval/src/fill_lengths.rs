@@ -36,8 +36,8 @@ pub const DEFAULT_LENGTHS_S: [f64; 4] = [0.1, 0.5, 1.0, 2.0];
 pub const NAMED_LIMB: [&str; 3] = ["LFRM", "LWRA", "LWRB"];
 
 /// The rows the ratio column compares against: the published and industry fills locap
-/// reimplements (the baselines), not locap's own methods (`auto`, `pca-aligned`, a
-/// learned refiner).
+/// reimplements (the baselines), not locap's own methods (`auto`, `pca-aligned`,
+/// `rigid-spline`, a learned refiner).
 pub const BASELINES: [&str; 6] = ["edm", "edm-nearest", "linear", "spline", "pca", "rigid"];
 
 /// Length of the limb gap, seconds.
