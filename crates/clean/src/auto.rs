@@ -392,25 +392,12 @@ impl Context<'_> {
             CANDIDATES[..3].to_vec()
         };
         let candidates = candidates.as_slice();
-        let reference = if edge == Edge::Inside { FillMethod::Linear } else { FillMethod::Edm };
         // Error vectors per candidate over the trials' hidden samples.
         let mut errors: Vec<Vec<Vec3>> = vec![Vec::new(); candidates.len()];
-        // One trial: `target` hidden over `range` with `hidden`, filled on the sub-takes of
-        // `target` and its neighbours by every candidate, errors added.
         let mut bounds: Vec<usize> = vec![0];
         let mut score = |target: usize, local: &[usize], range: Range<usize>, hidden: &dyn Fn(usize, usize) -> bool| {
-            let windows = self.windows(range.clone(), edge, local, &self.pca_markers(target), hidden);
-            let fills: Vec<Vec<Option<Vec3>>> = candidates.iter().map(|c| self.candidate(*c, &windows)).collect();
-            let reference = match candidates.iter().position(|c| *c == reference) {
-                Some(r) => fills[r].clone(),
-                None => self.candidate(reference, &windows),
-            };
-            for (k, f) in range.clone().enumerate() {
-                let Some(truth) = self.take.position_mm(f, target) else { continue };
-                let Some(reference) = reference[k] else { continue };
-                for (c, fill) in fills.iter().enumerate() {
-                    errors[c].push(fill[k].unwrap_or(reference) - truth);
-                }
+            for (all, new) in errors.iter_mut().zip(self.trial_errors(candidates, edge, target, local, range, hidden)) {
+                all.extend(new);
             }
             bounds.push(errors[0].len());
         };
@@ -464,6 +451,7 @@ impl Context<'_> {
                 }
             }
         };
+        let reference = reference_of(edge);
         let weight = |c: FillMethod| -> f64 { chosen.iter().position(|x| *x == c).map_or(0.0, |k| weights[k]) };
         let range = gap.start..gap.end();
         let none = |_: usize, _: usize| false;
@@ -505,6 +493,38 @@ impl Context<'_> {
             filled: samples.len(),
         };
         (choice, samples)
+    }
+
+    /// One trial: `target` hidden over `range` together with the `hidden` samples, filled on
+    /// the sub-takes of `target` and its `local` neighbours by every candidate; each
+    /// candidate's error vectors over the hidden samples of `target` that the reference
+    /// ([`reference_of`]) fills. A sample a candidate leaves missing counts with the
+    /// reference's error there, the fill it would fall back to.
+    fn trial_errors(
+        &self,
+        candidates: &[FillMethod],
+        edge: Edge,
+        target: usize,
+        local: &[usize],
+        range: Range<usize>,
+        hidden: &dyn Fn(usize, usize) -> bool,
+    ) -> Vec<Vec<Vec3>> {
+        let windows = self.windows(range.clone(), edge, local, &self.pca_markers(target), hidden);
+        let fills: Vec<Vec<Option<Vec3>>> = candidates.iter().map(|c| self.candidate(*c, &windows)).collect();
+        let reference = reference_of(edge);
+        let reference = match candidates.iter().position(|c| *c == reference) {
+            Some(r) => fills[r].clone(),
+            None => self.candidate(reference, &windows),
+        };
+        let mut errors = vec![Vec::new(); candidates.len()];
+        for (k, f) in range.enumerate() {
+            let Some(truth) = self.take.position_mm(f, target) else { continue };
+            let Some(reference) = reference[k] else { continue };
+            for (c, fill) in fills.iter().enumerate() {
+                errors[c].push(fill[k].unwrap_or(reference) - truth);
+            }
+        }
+        errors
     }
 
     /// `marker` and the neighbours of its sub-takes, marker first: its best neighbours (finite
@@ -745,6 +765,13 @@ fn trial_score(errors: &[Vec3], bounds: &[usize], score: TrialScore) -> f64 {
             }
         }
     }
+}
+
+/// The fill a gap falls back to where no chosen candidate filled a frame, and by which a
+/// trial's samples are scored: linear interpolation inside the take, EDM at its edges (where
+/// it alone decides how far a fill may reach).
+fn reference_of(edge: Edge) -> FillMethod {
+    if edge == Edge::Inside { FillMethod::Linear } else { FillMethod::Edm }
 }
 
 /// Frames that must be captured around a window of `len` frames from `start` for it to stand

@@ -4,6 +4,7 @@
 //!
 //! ```text
 //! cargo run -p locap-eval --release --example auto_diag -- TAKE.c3d [--seed 0] [--per-length 5] [--only 1s] [--multi]
+//!     [--neighbour-trials 2]
 //! ```
 //!
 //! `--multi`: the protocol's multi input instead (every gap and the limb gap at once, each
@@ -31,6 +32,10 @@ fn main() -> anyhow::Result<()> {
         methods.map(|m| m.name()).join(" | ")
     );
     let multi = args.iter().any(|a| a == "--multi");
+    let mut auto_config = AutoConfig::default();
+    if let Some(n) = option("--neighbour-trials") {
+        auto_config.neighbour_trials = n.parse()?;
+    }
     let gaps = fill_lengths::length_gaps(&truth, &config);
     // The multi input adds the simultaneous limb gap; a single input has no use for it.
     let mut all = gaps.clone();
@@ -39,7 +44,7 @@ fn main() -> anyhow::Result<()> {
     }
     // The multi input is filled once by each method; a single input once per gap.
     let fill_all = |holed: &locap_core::Take| {
-        let auto = auto::fill(holed, &AutoConfig::default());
+        let auto = auto::fill(holed, &auto_config);
         let each: Vec<locap_core::Take> = methods
             .iter()
             .map(|m| fill_gaps(holed, &FillConfig { method: *m, ..FillConfig::default() }).take)
