@@ -75,6 +75,22 @@ pub struct MarkerModel {
     root_base: Quat,
     /// Joints that lie at the mean of some markers ([`MarkerModel::with_joint_centres`]).
     centres: Vec<JointCentre>,
+    /// Joints whose rotation follows another's ([`MarkerModel::with_couplings`]).
+    couplings: Vec<JointCoupling>,
+}
+
+/// A joint that turns as another does, scaled: a finger's distal interphalangeal joint flexes
+/// about two thirds as far as its proximal one (one tendon moves both), which no marker set
+/// with one marker per finger segment pair can tell apart. A soft pull
+/// ([`IkConfig::coupling`]) on the joint's rotation vector towards `ratio` times the leader's.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct JointCoupling {
+    /// The following joint.
+    pub joint: usize,
+    /// The joint it follows.
+    pub leader: usize,
+    /// Its rotation vector over the leader's.
+    pub ratio: f64,
 }
 
 /// A joint whose centre lies at the mean of markers worn around it (a wrist between its radial
@@ -180,7 +196,37 @@ impl MarkerModel {
             dofs,
             root_base: Quat::identity(),
             centres: Vec::new(),
+            couplings: Vec::new(),
         })
+    }
+
+    /// Where joint `j`'s rotation vector starts in the pose parameters (`None`: it has none).
+    fn block_of(&self, j: usize) -> Option<usize> {
+        self.moving.iter().position(|&m| m == j).map(|k| 3 + 3 * k)
+    }
+
+    /// The same model with joints whose rotation follows another's (see [`JointCoupling`]).
+    ///
+    /// # Errors
+    /// A joint that does not rotate (an end site, or out of range), a joint following itself,
+    /// or a ratio that is not finite.
+    pub fn with_couplings(mut self, couplings: Vec<JointCoupling>) -> Result<MarkerModel, LabelError> {
+        for c in &couplings {
+            let moves = |j: usize| self.moving.contains(&j);
+            // The root's rotation vector is relative to a base that moves ([`MarkerModel`]'s
+            // `root_base`): it neither leads nor follows.
+            if !moves(c.joint)
+                || !moves(c.leader)
+                || c.joint == c.leader
+                || c.joint == 0
+                || c.leader == 0
+                || !c.ratio.is_finite()
+            {
+                return Err(LabelError::Config(format!("a joint coupling is not valid: {c:?}")));
+            }
+        }
+        self.couplings = couplings;
+        Ok(self)
     }
 
     /// The same model with joints that lie at the mean of markers around them (see
@@ -332,6 +378,9 @@ const DECIMETRE_MM: f64 = 100.0;
 /// While a marker is hidden its track is fed with the pose's own estimates, so a tight
 /// variance would let the track's stale velocity steer the hidden limb.
 const PREDICTION_FLOOR_MM: f64 = 50.0;
+/// [`IkConfig::coupling`] of both presets: in the kinematic one, 10 degrees off the coupling
+/// weigh as a marker 5 mm off. Soft, since the ratio varies between people and grips.
+const COUPLING: f64 = 8.0;
 /// Distances in the observed term are measured in this unit (mm).
 const DISTANCE_UNIT_MM: f64 = 10.0;
 
@@ -363,6 +412,9 @@ pub struct IkConfig {
     /// Pull of every non-root joint towards its rest orientation, per rad^2: holds joints the
     /// markers do not see (fingers, toes) in place (0: none, the paper's energy).
     pub rest: f64,
+    /// Weight of a coupled joint's rotation vector away from its share of its leader's
+    /// ([`JointCoupling`]), per rad^2.
+    pub coupling: f64,
     /// Observed markers further than this from the model (mm) count linearly, not squared
     /// (Huber): a mislabeled or stray marker cannot drag the pose. 0: plain squares.
     pub huber_mm: f64,
@@ -403,6 +455,7 @@ impl IkConfig {
             velocity_time_constant_s: 0.3,
             locked: 10.0,
             rest: 0.01,
+            coupling: COUPLING,
             huber_mm: 20.0,
             optimizer: Optimizer::LevenbergMarquardt,
             rebase_root: true,
@@ -424,6 +477,7 @@ impl Default for IkConfig {
             velocity_time_constant_s: 0.3,
             locked: 10.0,
             rest: 0.0,
+            coupling: COUPLING,
             huber_mm: 0.0,
             optimizer: Optimizer::Bfgs,
             rebase_root: false,
@@ -500,6 +554,12 @@ impl PoseProblem<'_> {
         if self.config.rest > 0.0 {
             energy += self.config.rest * rest;
         }
+        for c in &self.model.couplings {
+            if let (Some(a), Some(b)) = (self.model.block_of(c.joint), self.model.block_of(c.leader)) {
+                let off: f64 = (0..3).map(|d| (theta[a + d] - c.ratio * theta[b + d]).powi(2)).sum();
+                energy += self.config.coupling * off;
+            }
+        }
         energy
     }
 
@@ -523,7 +583,9 @@ impl PoseProblem<'_> {
         let rows_markers = 3 * model.attachments.len();
         // Rows: 3 per marker, 1 per parameter (smoothness), 9 per moving joint (3 limit rows,
         // 3 locked directions, 3 rest).
-        let rows = rows_markers + n + 9 * model.moving.len();
+        let rows_joints = rows_markers + n + 9 * model.moving.len();
+        // And 3 per coupling.
+        let rows = rows_joints + 3 * model.couplings.len();
         let mut r = DVector::zeros(rows);
         let mut jac = DMatrix::zeros(rows, n);
         let on = |j: usize, o: &Vec3| pose.positions_mm[j] + pose.rotations[j] * o;
@@ -630,6 +692,16 @@ impl PoseProblem<'_> {
                         }
                     }
                 }
+            }
+        }
+        let w = self.config.coupling.sqrt();
+        for (k, c) in model.couplings.iter().enumerate() {
+            let (Some(a), Some(b)) = (model.block_of(c.joint), model.block_of(c.leader)) else { continue };
+            let row = rows_joints + 3 * k;
+            for d in 0..3 {
+                r[row + d] = w * (theta[a + d] - c.ratio * theta[b + d]);
+                jac[(row + d, a + d)] = w;
+                jac[(row + d, b + d)] = -w * c.ratio;
             }
         }
         (r, jac)
@@ -1515,7 +1587,11 @@ pub(crate) mod tests {
 
     #[test]
     fn residuals_are_the_energy_and_the_jacobian_its_derivative() {
-        let model = hinged_arm().in_lab(MarkerModel::y_up_in_z_up_lab());
+        // The forearm follows the upper arm (a coupling's rows are checked too).
+        let model = hinged_arm()
+            .with_couplings(vec![JointCoupling { joint: 2, leader: 1, ratio: 0.6 }])
+            .unwrap()
+            .in_lab(MarkerModel::y_up_in_z_up_lab());
         let tracker = PoseTracker::new(model.clone(), IkConfig::default(), 60.0);
         let config = IkConfig { rest: 0.3, limit_deg: 20.0, predicted: 0.2, ..IkConfig::kinematic() };
         let config = IkConfig { huber_mm: 0.0, ..config };
@@ -1542,6 +1618,18 @@ pub(crate) mod tests {
             let err = (numeric - analytic).norm();
             assert!(err < 1e-4 * analytic.norm().max(1.0), "parameter {k}: {err}");
         }
+    }
+
+    #[test]
+    fn couplings_join_two_turning_joints_other_than_the_root() {
+        let coupled = |joint, leader, ratio| hinged_arm().with_couplings(vec![JointCoupling { joint, leader, ratio }]);
+        assert!(coupled(2, 1, 0.5).is_ok());
+        assert!(coupled(3, 2, 0.5).is_err(), "an end site");
+        assert!(coupled(2, 2, 0.5).is_err(), "itself");
+        assert!(coupled(2, 0, 0.5).is_err(), "the root leads");
+        assert!(coupled(0, 2, 0.5).is_err(), "the root follows");
+        assert!(coupled(9, 2, 0.5).is_err(), "no such joint");
+        assert!(coupled(2, 1, f64::NAN).is_err(), "no ratio");
     }
 
     #[test]
