@@ -204,4 +204,37 @@ fn hands_then_synth() {
         .unwrap();
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     assert!(String::from_utf8_lossy(&out.stdout).contains("2 takes, 1938 frames, 14 markers"));
+
+    // The layout carries its skeleton, so the hand take solves with no training; its finger
+    // joints come back near the motion the markers were made from.
+    let take = dir.path().join(format!("train/{stem}-right-proc-002"));
+    let solved = dir.path().join("solved.bvh");
+    let out = locap()
+        .arg("solve")
+        .arg(take.with_extension("c3d"))
+        .args(["--method", "ik", "--layout"])
+        .arg(hands.join("hand-right.toml"))
+        .arg("-o")
+        .arg(&solved)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let read = |p: &Path| locap_io::bvh::read_bvh_path(p, locap_core::LengthUnit::Centimetre).unwrap();
+    let (solved, truth) = (read(&solved), read(&take.with_extension("bvh")));
+    assert_eq!(solved.frame_count(), truth.frame_count());
+    let mut sum = 0.0;
+    let mut count = 0;
+    for (j, joint) in truth.skeleton.joints().iter().enumerate() {
+        if j == 0 || joint.is_end_site {
+            continue;
+        }
+        let k = solved.skeleton.index_of(&joint.name).unwrap_or_else(|| panic!("{} not solved", joint.name));
+        for f in 0..truth.frame_count() {
+            sum += solved.local_rotations(f)[k].angle_to(&truth.local_rotations(f)[j]).to_degrees();
+            count += 1;
+        }
+    }
+    let mean = sum / count as f64;
+    eprintln!("finger joints off by {mean:.2} degrees on average");
+    assert!(mean < 12.0, "finger joints off by {mean:.2} degrees on average");
 }

@@ -26,7 +26,9 @@
 use crate::NnError;
 use locap_clean::{CleanConfig, Cleaned, Filler};
 use locap_core::{Motion, Skeleton, Take, UpAxis, Vec3};
-use locap_label::ik::{Attachment, DofAxis, JointCentre, JointDofs, MarkerModel, SequenceConfig, solve_sequence};
+use locap_label::ik::{
+    Attachment, DofAxis, JointCentre, JointCoupling, JointDofs, MarkerModel, SequenceConfig, solve_sequence,
+};
 use locap_synth::Layout;
 
 /// Weight of the rotation directions a layout skeleton's degrees of freedom lock
@@ -284,6 +286,19 @@ impl KinematicSolver {
             })
             .collect();
         let mut solver = KinematicSolver::new(layout, &skeleton, Some(dofs))?;
+        let index = |name: &str| section.joints.iter().position(|j| j.name == name);
+        let couplings: Vec<JointCoupling> = section
+            .joints
+            .iter()
+            .enumerate()
+            .filter_map(|(k, j)| {
+                let f = j.follows.as_ref()?;
+                Some(JointCoupling { joint: k, leader: index(&f.joint)?, ratio: f.ratio })
+            })
+            .collect();
+        if !couplings.is_empty() {
+            solver.model = solver.model.clone().with_couplings(couplings).map_err(config_error)?;
+        }
         // A layout's degrees of freedom are a model's simplification (an OpenSim model welds the
         // head to the torso; the importer drops the knee's spline-coupled rotations), so the
         // directions they lock are a soft pull here, not a weld: a joint leaves its axes by a

@@ -13,7 +13,8 @@
 //!
 //! # Skeleton and fit ([`fit_art_hand`])
 //! One skeleton per hand: root `LHand` at the wrist; per finger three joints and an end site
-//! (`LIndex1` knuckle, `LIndex2`, `LIndex3`, `LIndex_End` tip). The hand frame is built per
+//! (`LIndex1` knuckle, `LIndex2`, `LIndex3`, `LIndex3_End` tip, the name a BVH reader gives the
+//! end site). The hand frame is built per
 //! frame from the wrist and the knuckles: `x` from the wrist to the middle knuckle, `y` the
 //! back of the hand (the side the fingertips curl away from, decided from the data), `z = x
 //! cross y`. At rest (identity rotations) the four fingers are straight along `x`, the
@@ -36,7 +37,8 @@
 //! `3` on the proximal and `6` on the distal phalanx (the naming of the paper's released
 //! finger statistics, `LTHM3`, `LIDX6`, ...), all on the back of the hand.
 
-use crate::layout::{Layout, LayoutMarker, Region};
+use crate::layout::{Dof, Follow, Layout, LayoutJoint, LayoutMarker, LayoutSkeleton, Region};
+use locap_core::UpAxis;
 use locap_core::{EulerOrder, Joint, Motion, Quat, Skeleton, SkeletonError, Take, Vec3};
 use rand::{Rng, RngExt};
 use serde::{Deserialize, Serialize};
@@ -230,7 +232,7 @@ pub fn fit_art_hand(take: &Take, side: Side) -> Result<(Motion, HandFitReport), 
         });
         for b in 0..3 {
             joints.push(Joint {
-                name: if b == 2 { format!("{prefix}{finger}_End") } else { format!("{prefix}{finger}{}", b + 2) },
+                name: if b == 2 { format!("{prefix}{finger}3_End") } else { format!("{prefix}{finger}{}", b + 2) },
                 parent: Some(first + b),
                 offset_mm: rest_dir[k][b] * (length[k][b] / n),
                 rotation_order: EulerOrder::ZXY,
@@ -444,7 +446,8 @@ pub fn hand_layout(skeleton: &Skeleton, side: Side, dorsal_mm: f64) -> Result<La
         let proximal = if finger == "Thumb" { 2 } else { 1 };
         for (bone, number, at) in [(proximal, 3, 0.5), (3, 6, 0.5)] {
             let j = joint(format!("{s}{finger}{bone}"))?;
-            let child = joint(if bone == 3 { format!("{s}{finger}_End") } else { format!("{s}{finger}{}", bone + 1) })?;
+            let child =
+                joint(if bone == 3 { format!("{s}{finger}3_End") } else { format!("{s}{finger}{}", bone + 1) })?;
             markers.push(marker(
                 format!("{s}{short}{number}"),
                 skeleton.joints()[j].name.clone(),
@@ -459,8 +462,72 @@ pub fn hand_layout(skeleton: &Skeleton, side: Side, dorsal_mm: f64) -> Result<La
         ),
         aliases: Default::default(),
         markers,
-        skeleton: None,
+        skeleton: Some(hand_skeleton(skeleton, &FingerLimits::default())),
     })
+}
+
+/// How far the joint ranges of [`hand_skeleton`] reach beyond [`FingerLimits`], degrees: a
+/// real hand (the fitted ART capture) goes a little beyond the procedural motion's ranges.
+pub const RANGE_MARGIN_DEG: f64 = 10.0;
+
+/// `skeleton` (from [`fit_art_hand`]) with each joint's rotational freedom, so a layout
+/// carrying it solves with no training (`locap solve --method ik`): the root free; each
+/// finger's knuckle flexion (about `z`, towards the palm is negative) and abduction (about
+/// `y`), its two interphalangeal joints flexion only, within [`FingerLimits`] widened by
+/// [`RANGE_MARGIN_DEG`]; the thumb's three joints about `y` and `z` within its range around
+/// the rest pose; end sites without rotation; each finger's distal joint following its
+/// proximal interphalangeal one by [`FingerLimits::dip_coupling`]. Twist about a bone is not a
+/// freedom of any finger joint, as in the fit (swing only).
+pub fn hand_skeleton(skeleton: &Skeleton, limits: &FingerLimits) -> LayoutSkeleton {
+    let m = RANGE_MARGIN_DEG;
+    let dof = |name: &str, axis: [f64; 3], min_deg: f64, max_deg: f64| Dof {
+        name: name.to_string(),
+        axis,
+        min_deg: min_deg - m,
+        max_deg: max_deg + m,
+    };
+    let (y, z) = ([0.0, 1.0, 0.0], [0.0, 0.0, 1.0]);
+    // Flexion of `deg` is a turn of `-deg` about `z` ([`procedural_fingers`]).
+    let flexion = |range: [f64; 2]| dof("flexion", z, -range[1], -range[0]);
+    let joints = skeleton.joints();
+    let layout_joints = joints
+        .iter()
+        .map(|j| {
+            // Names are `LHand`, `LIndex1`, ..., `LIndex3_End`: side letter, finger, bone.
+            let bone = j.name.chars().last().and_then(|c| c.to_digit(10));
+            let thumb = j.name.get(1..).is_some_and(|n| n.starts_with("Thumb"));
+            let dofs = match (j.parent, bone) {
+                (None, _) => None,
+                (Some(_), None) => Some(Vec::new()),
+                (Some(_), Some(_)) if thumb => {
+                    let r = limits.thumb_range_deg;
+                    Some(vec![dof("abduction", y, -r, r), dof("flexion", z, -r, 0.0)])
+                }
+                (Some(_), Some(1)) => Some(vec![
+                    dof("abduction", y, -limits.mcp_abduction_deg, limits.mcp_abduction_deg),
+                    flexion(limits.mcp_flexion_deg),
+                ]),
+                (Some(_), Some(2)) => Some(vec![flexion(limits.pip_flexion_deg)]),
+                (Some(_), Some(_)) => Some(vec![flexion(limits.pip_flexion_deg.map(|d| d * limits.dip_coupling))]),
+            };
+            // The distal interphalangeal joint flexes with the proximal one (one tendon).
+            let follows = match (bone, j.parent) {
+                (Some(3), Some(p)) if !thumb => {
+                    Some(Follow { joint: joints[p].name.clone(), ratio: limits.dip_coupling })
+                }
+                _ => None,
+            };
+            let o = j.offset_mm;
+            LayoutJoint {
+                name: j.name.clone(),
+                parent: j.parent.map(|p| joints[p].name.clone()),
+                offset_mm: [o.x, o.y, o.z],
+                dofs,
+                follows,
+            }
+        })
+        .collect();
+    LayoutSkeleton { up_axis: UpAxis::Y, joints: layout_joints }
 }
 
 #[cfg(test)]
@@ -511,6 +578,42 @@ mod tests {
         let (_, lo, hi) = &report.flexion_range_deg[1];
         assert!(*lo > -5.0 && *hi > 30.0, "{:?}", report.flexion_range_deg);
         assert!(matches!(fit_art_hand(&take, Side::Right), Err(HandError::MissingPoint(_))));
+    }
+
+    /// The layout carries the skeleton it was made on, with ranges that hold the procedural
+    /// motion: every joint's rotation vector (what the kinematic solver fits) has its component
+    /// along each axis within that axis's range, and the root is free.
+    #[test]
+    fn layout_skeleton_holds_the_procedural_motion() {
+        let (base, _) = fit_art_hand(&art_like(300), Side::Left).unwrap();
+        let motion =
+            procedural_fingers(&base, &FingerLimits::default(), &mut rand::rngs::StdRng::seed_from_u64(5)).unwrap();
+        let layout = hand_layout(&motion.skeleton, Side::Left, 8.0).unwrap();
+        let section = layout.skeleton.as_ref().expect("the hand layout carries its skeleton");
+        layout.check().unwrap();
+        let rebuilt = section.to_skeleton().unwrap();
+        assert_eq!(rebuilt.len(), motion.skeleton.len());
+        for (a, b) in rebuilt.joints().iter().zip(motion.skeleton.joints()) {
+            assert_eq!((&a.name, a.parent), (&b.name, b.parent));
+            assert!((a.offset_mm - b.offset_mm).norm() < 1e-9, "{}", a.name);
+        }
+        assert_eq!(section.joints[0].dofs, None);
+        // End sites never turn; every finger joint turns about one or two axes.
+        for j in &section.joints[1..] {
+            let dofs = j.dofs.as_ref().unwrap();
+            assert_eq!(dofs.is_empty(), j.name.ends_with("_End"), "{}", j.name);
+        }
+        let mut worst: f64 = 0.0;
+        for f in 0..motion.frame_count() {
+            for (j, rot) in section.joints.iter().zip(motion.local_rotations(f)).skip(1) {
+                let v = rot.scaled_axis();
+                for d in j.dofs.iter().flatten() {
+                    let along = v.dot(&Vec3::from(d.axis)).to_degrees();
+                    worst = worst.max(d.min_deg - along).max(along - d.max_deg);
+                }
+            }
+        }
+        assert!(worst <= 0.0, "the procedural motion leaves the layout's ranges by {worst} degrees");
     }
 
     /// `hands --procedural 1000000` ran for days: refused up front.

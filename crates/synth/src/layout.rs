@@ -197,6 +197,19 @@ pub struct LayoutJoint {
     /// Rotational degrees of freedom; `None`: a free ball joint without limits.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub dofs: Option<Vec<Dof>>,
+    /// Another joint this one turns with, scaled (a finger's distal joint with its middle
+    /// one); a solver pulls it softly there.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub follows: Option<Follow>,
+}
+
+/// How a [`LayoutJoint`] turns with another.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Follow {
+    /// The joint it follows.
+    pub joint: String,
+    /// Its rotation over that joint's (about the same axes).
+    pub ratio: f64,
 }
 
 /// A rotation axis of a joint and its range.
@@ -240,6 +253,12 @@ impl LayoutSkeleton {
                 }
             }
             joints.push(Joint::new(j.name.clone(), parent, Vec3::from(j.offset_mm)));
+        }
+        for j in &self.joints {
+            let Some(f) = &j.follows else { continue };
+            if f.joint == j.name || !self.joints.iter().any(|k| k.name == f.joint) || !f.ratio.is_finite() {
+                return bad(format!("joint {:?}: it cannot follow {:?} by {}", j.name, f.joint, f.ratio));
+            }
         }
         Skeleton::new(joints).map_err(|e| LayoutError::Skeleton(e.to_string()))
     }

@@ -415,6 +415,7 @@ pub fn layout_from_opensim(model: XmlSource, markers: Option<XmlSource>) -> Resu
             parent: (!is_root).then(|| j.parent.clone()),
             offset_mm: (offset_m * 1000.0).into(),
             dofs,
+            follows: None,
         });
     }
     // Markers: the marker file's, or the model's own.

@@ -50,6 +50,11 @@ pub struct Args {
     /// wrist centre to lie between its two wrist markers.
     #[arg(long, requires = "kinematic", help_heading = "Input")]
     no_wrist_centres: bool,
+    /// The kinematic solver on this layout and the skeleton it carries (from `locap hands` or
+    /// `locap layout --from-opensim`) instead of the CMU 41-marker layout; the data's
+    /// skeleton must have the same joints.
+    #[arg(long, value_name = "LAYOUT", requires = "kinematic", help_heading = "Input")]
+    kinematic_layout: Option<PathBuf>,
     /// Write the results as JSON.
     #[arg(long, value_name = "FILE", help_heading = "Output")]
     json: Option<PathBuf>,
@@ -137,7 +142,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
     let data = crate::training::solver_data(&args.data)?;
     eprintln!("evaluating {} models on {} takes, {} frames", solvers.len(), data.shards.len(), data.frames());
     let kinematic = if args.kinematic {
-        let mut k = KinematicSolver::cmu41()?;
+        let mut k = crate::cmd::solve::kinematic_solver(args.kinematic_layout.as_deref(), None)?;
         if args.no_wrist_centres {
             k.config.joint_centre_weight = 0.0;
         }

@@ -121,7 +121,7 @@ pub enum Method {
 }
 
 /// The kinematic solver the arguments ask for.
-fn kinematic_solver(layout: Option<&Path>, skeleton: Option<&Path>) -> Result<KinematicSolver> {
+pub(crate) fn kinematic_solver(layout: Option<&Path>, skeleton: Option<&Path>) -> Result<KinematicSolver> {
     let Some(path) = layout else { return Ok(KinematicSolver::cmu41()?) };
     let layout = crate::cmd::layout::read_layout(path)?;
     let solver = match skeleton {
