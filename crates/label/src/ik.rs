@@ -412,6 +412,10 @@ pub struct IkConfig {
     /// Pull of every non-root joint towards its rest orientation, per rad^2: holds joints the
     /// markers do not see (fingers, toes) in place (0: none, the paper's energy).
     pub rest: f64,
+    /// Pull of every non-root joint towards the prior pose where one is set
+    /// ([`PoseTracker::set_prior`], [`solve_sequence_with_prior`]), per rad^2: another
+    /// solver's answer (a network's) that the markers refine.
+    pub prior: f64,
     /// Weight of a coupled joint's rotation vector away from its share of its leader's
     /// ([`JointCoupling`]), per rad^2.
     pub coupling: f64,
@@ -455,6 +459,7 @@ impl IkConfig {
             velocity_time_constant_s: 0.3,
             locked: 10.0,
             rest: 0.01,
+            prior: 0.0,
             coupling: COUPLING,
             huber_mm: 20.0,
             optimizer: Optimizer::LevenbergMarquardt,
@@ -477,6 +482,7 @@ impl Default for IkConfig {
             velocity_time_constant_s: 0.3,
             locked: 10.0,
             rest: 0.0,
+            prior: 0.0,
             coupling: COUPLING,
             huber_mm: 0.0,
             optimizer: Optimizer::Bfgs,
@@ -499,6 +505,8 @@ struct PoseProblem<'a> {
     damping: f64,
     /// Per joint, the directions its axes do not allow ([`locked_directions`]).
     locked: &'a [Vec<Vec3>],
+    /// The prior pose's parameters (its root block unused), when set.
+    prior: Option<&'a [f64]>,
 }
 
 impl PoseProblem<'_> {
@@ -560,6 +568,11 @@ impl PoseProblem<'_> {
                 energy += self.config.coupling * off;
             }
         }
+        if let Some(prior) = self.prior {
+            // Every block but the root's (the first).
+            let off: f64 = (6..theta.len()).map(|k| (theta[k] - prior[k]).powi(2)).sum();
+            energy += self.config.prior * off;
+        }
         energy
     }
 
@@ -584,8 +597,9 @@ impl PoseProblem<'_> {
         // Rows: 3 per marker, 1 per parameter (smoothness), 9 per moving joint (3 limit rows,
         // 3 locked directions, 3 rest).
         let rows_joints = rows_markers + n + 9 * model.moving.len();
-        // And 3 per coupling.
-        let rows = rows_joints + 3 * model.couplings.len();
+        // And 3 per coupling, and with a prior pose 3 per moving joint but the root.
+        let rows_prior = rows_joints + 3 * model.couplings.len();
+        let rows = rows_prior + self.prior.map_or(0, |_| n - 6);
         let mut r = DVector::zeros(rows);
         let mut jac = DMatrix::zeros(rows, n);
         let on = |j: usize, o: &Vec3| pose.positions_mm[j] + pose.rotations[j] * o;
@@ -702,6 +716,13 @@ impl PoseProblem<'_> {
                 r[row + d] = w * (theta[a + d] - c.ratio * theta[b + d]);
                 jac[(row + d, a + d)] = w;
                 jac[(row + d, b + d)] = -w * c.ratio;
+            }
+        }
+        if let Some(prior) = self.prior {
+            let w = self.config.prior.sqrt();
+            for k in 6..n {
+                r[rows_prior + k - 6] = w * (theta[k] - prior[k]);
+                jac[(rows_prior + k - 6, k)] = w;
             }
         }
         (r, jac)
@@ -831,6 +852,8 @@ pub struct PoseTracker {
     damping: f64,
     /// Per joint, the rotation directions its axes do not allow.
     locked: Vec<Vec<Vec3>>,
+    /// The prior pose of the next fit ([`PoseTracker::set_prior`]).
+    prior: Option<Vec<f64>>,
 }
 
 impl PoseTracker {
@@ -845,7 +868,7 @@ impl PoseTracker {
                 JointDofs::Axes(axes) => locked_directions(axes),
             })
             .collect();
-        PoseTracker { model, config, history: Vec::new(), damping, locked }
+        PoseTracker { model, config, history: Vec::new(), damping, locked, prior: None }
     }
 
     /// The marker model.
@@ -889,6 +912,7 @@ impl PoseTracker {
             history,
             damping: self.damping,
             locked: &self.locked,
+            prior: self.prior.as_deref(),
         };
         let iterations = if first { self.config.first_iterations } else { self.config.iterations };
         if self.config.optimizer == Optimizer::LevenbergMarquardt {
@@ -931,6 +955,11 @@ impl PoseTracker {
     /// returns it), without a motion history: a fit of a lone frame near a known pose.
     pub fn start_from(&mut self, local: &[Quat], root_mm: Vec3) {
         self.model.root_base = Quat::identity();
+        self.history = vec![self.parameters_of(local, root_mm)];
+    }
+
+    /// The parameters of a pose with the root's rotation taken as is (no base).
+    fn parameters_of(&self, local: &[Quat], root_mm: Vec3) -> Vec<f64> {
         let mut theta = vec![0.0; self.model.parameter_count()];
         for (k, &j) in self.model.moving.iter().enumerate() {
             let v = local[j].scaled_axis();
@@ -939,7 +968,13 @@ impl PoseTracker {
         for c in 0..3 {
             theta[c] = root_mm[c] / DECIMETRE_MM;
         }
-        self.history = vec![theta];
+        theta
+    }
+
+    /// The pose the next fits are pulled towards, joint by joint but the root
+    /// ([`IkConfig::prior`]): local rotations, one per skeleton joint; `None`: no pull.
+    pub fn set_prior(&mut self, local: Option<&[Quat]>) {
+        self.prior = local.map(|l| self.parameters_of(l, Vec3::zeros()));
     }
 
     /// The rest pose turned and moved onto the observed markers (rigid fit of the rest pose's
@@ -1098,6 +1133,32 @@ pub fn solve_sequence(
     frame_rate_hz: f64,
     config: &SequenceConfig,
 ) -> Result<SequenceFit, LabelError> {
+    solve_sequence_with_prior(model, frames, frame_rate_hz, config, None)
+}
+
+/// [`solve_sequence`] with every frame's fit pulled towards a prior pose (`prior[f]`: local
+/// rotations of the model's joints, [`IkConfig::prior`] its weight), such as a network's
+/// answer: the markers refine it where they see, the prior holds what they do not.
+///
+/// # Errors
+/// As [`solve_sequence`], or a prior that is not one pose of the model's joints per frame.
+pub fn solve_sequence_with_prior(
+    model: MarkerModel,
+    frames: &[Vec<Option<Vec3>>],
+    frame_rate_hz: f64,
+    config: &SequenceConfig,
+    prior: Option<&[Vec<Quat>]>,
+) -> Result<SequenceFit, LabelError> {
+    if let Some(p) = prior
+        && (p.len() != frames.len() || p.iter().any(|pose| pose.len() != model.skeleton.len()))
+    {
+        return Err(LabelError::Config(format!(
+            "the prior has {} poses for {} frames, or not one rotation per joint",
+            p.len(),
+            frames.len()
+        )));
+    }
+    let prior_at = |f: usize| prior.map(|p| p[f].as_slice());
     if frames.is_empty() {
         return Err(LabelError::Config("the take has no frames".into()));
     }
@@ -1126,6 +1187,7 @@ pub fn solve_sequence(
         let mut poses = Vec::with_capacity(chosen.len());
         let mut next = 0;
         for f in (0..frames.len()).step_by(stride) {
+            tracker.set_prior(prior_at(f));
             let pose = tracker.fit_pose(&frames[f], &vec![None; frames[f].len()]);
             if f == 0 {
                 first_pass_start = Some(pose.clone());
@@ -1159,6 +1221,7 @@ pub fn solve_sequence(
     let mut poses = Vec::with_capacity(frames.len());
     let mut residual_rms_mm = Vec::with_capacity(frames.len());
     for (f, frame) in frames.iter().enumerate() {
+        tracker.set_prior(prior_at(f));
         let (mut local, mut root) = tracker.fit_pose(frame, &vec![None; frame.len()]);
         // The first frame also from the first pass's pose: from the rest pose, a limb the
         // markers barely turn (a hand on one marker, its twist wide open) can land on the
@@ -1167,6 +1230,7 @@ pub fn solve_sequence(
             let mut other =
                 PoseTracker::new(model.clone(), IkConfig { iterations: config.ik.first_iterations, ..config.ik }, 1.0);
             other.start_from(start, *start_root);
+            other.set_prior(prior_at(0));
             let (l, r) = other.fit_pose(frame, &vec![None; frame.len()]);
             let better = |a: Option<f64>, b: Option<f64>| matches!((a, b), (Some(a), Some(b)) if a < b - 1e-9);
             if better(frame_rms(&model, &l, r, frame), frame_rms(&model, &local, root, frame)) {
@@ -1582,7 +1646,7 @@ pub(crate) mod tests {
         history: Option<(&'a [f64], &'a [f64])>,
         locked: &'a [Vec<Vec3>],
     ) -> PoseProblem<'a> {
-        PoseProblem { model, config, observed, predicted, history, damping: 0.9, locked }
+        PoseProblem { model, config, observed, predicted, history, damping: 0.9, locked, prior: None }
     }
 
     #[test]
@@ -1594,7 +1658,7 @@ pub(crate) mod tests {
             .in_lab(MarkerModel::y_up_in_z_up_lab());
         let tracker = PoseTracker::new(model.clone(), IkConfig::default(), 60.0);
         let config = IkConfig { rest: 0.3, limit_deg: 20.0, predicted: 0.2, ..IkConfig::kinematic() };
-        let config = IkConfig { huber_mm: 0.0, ..config };
+        let config = IkConfig { huber_mm: 0.0, prior: 2.0, ..config };
         let mut theta = arm_pose(&model, 0.7);
         theta[3..6].copy_from_slice(&[0.3, -0.2, 0.5]);
         theta[9..12].copy_from_slice(&[0.2, 0.1, -0.4]); // forearm: off its axis and below its range
@@ -1604,7 +1668,12 @@ pub(crate) mod tests {
         let mut predicted = vec![None; truth.len()];
         predicted[4] = Some((truth[4].unwrap() + Vec3::new(3.0, 0.0, 0.0), 900.0));
         let (a, b) = (arm_pose(&model, 0.6), arm_pose(&model, 0.5));
-        let p = problem(&model, &config, &observed, &predicted, Some((&a, &b)), &tracker.locked);
+        // A prior pose to be pulled towards (its rows are checked too).
+        let prior = arm_pose(&model, 0.9);
+        let p = PoseProblem {
+            prior: Some(&prior),
+            ..problem(&model, &config, &observed, &predicted, Some((&a, &b)), &tracker.locked)
+        };
         let (r, jac) = p.linearize(&theta);
         let energy = p.energy(&theta);
         assert!((r.norm_squared() - energy).abs() < 1e-9 * energy.max(1.0), "{} vs {energy}", r.norm_squared());
@@ -1805,6 +1874,38 @@ pub(crate) mod tests {
         let (h, g) = normal_equations(&r, &jac);
         assert!((h - jac.transpose() * &jac).norm() < 1e-12);
         assert!((g - jac.transpose() * &r).norm() < 1e-12);
+    }
+
+    /// A joint no marker rides on is held near where the prior puts it (within a few degrees:
+    /// the smoothness term lags a moving prior), away from the rest pose the fit without a
+    /// prior leaves it in; the markers still place the rest.
+    #[test]
+    fn a_prior_holds_what_the_markers_do_not_see() {
+        let model = hinged_arm();
+        let config = SequenceConfig {
+            ik: IkConfig { prior: 3.0, ..IkConfig::kinematic() },
+            calibration_frames: 0,
+            ..SequenceConfig::default()
+        };
+        let mut frames = Vec::new();
+        let mut prior = Vec::new();
+        for f in 0..30 {
+            let theta = arm_pose(&model, f as f64 / 30.0);
+            // The forearm's markers (6-8) are never captured.
+            let mut markers = model.markers_mm(&theta);
+            markers[6..].iter_mut().for_each(|m| *m = None);
+            frames.push(markers);
+            prior.push(model.pose(&theta).0);
+        }
+        let with = solve_sequence_with_prior(model.clone(), &frames, 60.0, &config, Some(&prior)).unwrap();
+        let without = solve_sequence(model.clone(), &frames, 60.0, &config).unwrap();
+        for f in [10, 29] {
+            let forearm = |fit: &SequenceFit| fit.poses[f].0[2].angle_to(&prior[f][2]).to_degrees();
+            assert!(forearm(&with) < 5.0, "frame {f}: forearm {} deg from the prior", forearm(&with));
+            assert!(forearm(&without) > 10.0, "frame {f}: without a prior {} deg", forearm(&without));
+            assert!(with.poses[f].0[1].angle_to(&prior[f][1]).to_degrees() < 1.0, "frame {f}: upper arm");
+        }
+        assert!(solve_sequence_with_prior(model, &frames, 60.0, &config, Some(&prior[1..])).is_err());
     }
 
     #[test]
