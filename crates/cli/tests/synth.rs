@@ -219,22 +219,97 @@ fn hands_then_synth() {
         .output()
         .unwrap();
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let mean = mean_joint_error_deg(&solved, &take.with_extension("bvh"));
+    assert!(mean < 12.0, "finger joints off by {mean:.2} degrees on average");
+}
+
+/// Mean angle (degrees) between the local rotations of the joints of a solved BVH and the
+/// true motion's (matched by name; root and end sites left out), over every frame.
+fn mean_joint_error_deg(solved: &Path, truth: &Path) -> f64 {
+    joint_errors(solved, truth).0
+}
+
+/// The mean joint rotation error (degrees, as [`mean_joint_error_deg`]) and the mean joint
+/// position error (mm) in the root's frame (every joint and end site but the root; the frame
+/// each file is written in does not matter), of a solved BVH against the true motion.
+fn joint_errors(solved: &Path, truth: &Path) -> (f64, f64) {
     let read = |p: &Path| locap_io::bvh::read_bvh_path(p, locap_core::LengthUnit::Centimetre).unwrap();
-    let (solved, truth) = (read(&solved), read(&take.with_extension("bvh")));
+    let (solved, truth) = (read(solved), read(truth));
     assert_eq!(solved.frame_count(), truth.frame_count());
-    let mut sum = 0.0;
-    let mut count = 0;
-    for (j, joint) in truth.skeleton.joints().iter().enumerate() {
-        if j == 0 || joint.is_end_site {
-            continue;
-        }
-        let k = solved.skeleton.index_of(&joint.name).unwrap_or_else(|| panic!("{} not solved", joint.name));
-        for f in 0..truth.frame_count() {
-            sum += solved.local_rotations(f)[k].angle_to(&truth.local_rotations(f)[j]).to_degrees();
-            count += 1;
+    let (mut angle, mut angles, mut distance, mut distances) = (0.0, 0, 0.0, 0);
+    for f in 0..truth.frame_count() {
+        let (a, b) = (solved.forward_kinematics(f), truth.forward_kinematics(f));
+        let in_root = |pose: &locap_core::skeleton::GlobalPose, j: usize| {
+            pose.rotations[0].inverse() * (pose.positions_mm[j] - pose.positions_mm[0])
+        };
+        for (j, joint) in truth.skeleton.joints().iter().enumerate().skip(1) {
+            let k = solved.skeleton.index_of(&joint.name).unwrap_or_else(|| panic!("{} not solved", joint.name));
+            distance += (in_root(&a, k) - in_root(&b, j)).norm();
+            distances += 1;
+            if !joint.is_end_site {
+                angle += solved.local_rotations(f)[k].angle_to(&truth.local_rotations(f)[j]).to_degrees();
+                angles += 1;
+            }
         }
     }
-    let mean = sum / count as f64;
-    eprintln!("finger joints off by {mean:.2} degrees on average");
-    assert!(mean < 12.0, "finger joints off by {mean:.2} degrees on average");
+    (angle / angles as f64, distance / distances as f64)
+}
+
+/// A hand take none of the shipped hand models saw (procedural fingers of another seed, real
+/// gap statistics): the shipped right-hand network refined by the kinematic solver on the
+/// shipped layout (`--method refine`) shapes the fingers, relative to the hand, far closer to
+/// the truth than the kinematic solver alone and within 1.5 degrees and 1.5 mm of the network
+/// alone. Its gain over the network is the hand's placement and orientation in the lab
+/// (docs/benchmarks.md, "Kinematic hand solver"), which this comparison in the root's frame
+/// leaves out; on this take the network shapes the fingers a little better.
+#[test]
+fn a_held_out_hand_take_solves_refined_near_the_network() {
+    let Some(data) = shared_data() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let hands = dir.path().join("hands");
+    let out = locap()
+        .arg("hands")
+        .arg(data.join("hands"))
+        .args(["--procedural", "1", "--seed", "99", "-o"])
+        .arg(&hands)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let stem = "ART-Human_hands_real_no6dof-right-proc-001";
+    let layout = repo().join("crates/synth/layouts/hand-right.toml");
+    let out = locap()
+        .args(["synth", "--motion"])
+        .arg(hands.join(format!("{stem}.bvh")))
+        .arg("--layout")
+        .arg(&layout)
+        .args(["--bvh-mm-per-unit", "10", "--format", "c3d", "--p-occ", "0.1", "--augment"])
+        .arg(data.join("gap-stats/real-gap-statistics.json"))
+        .arg("-o")
+        .arg(dir.path().join("take"))
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let take = dir.path().join(format!("take/{stem}"));
+    let model = repo().join("models/solver-hand-right.locapsv");
+    let solve = |method: &str| {
+        let solved = dir.path().join(format!("{method}.bvh"));
+        let out = locap()
+            .arg("solve")
+            .arg(take.with_extension("c3d"))
+            .args(["--method", method, "--model"])
+            .arg(&model)
+            .arg("--layout")
+            .arg(&layout)
+            .arg("-o")
+            .arg(&solved)
+            .output()
+            .unwrap();
+        assert!(out.status.success(), "{method}: {}", String::from_utf8_lossy(&out.stderr));
+        joint_errors(&solved, &take.with_extension("bvh"))
+    };
+    let (network, ik, refined) = (solve("network"), solve("ik"), solve("refine"));
+    let text = format!("(degrees, mm): network {network:.2?}, ik {ik:.2?}, refined {refined:.2?}");
+    eprintln!("joints off on average {text}");
+    assert!(refined.0 < ik.0 - 3.0 && refined.1 < ik.1 - 1.5, "{text}");
+    assert!(refined.0 < network.0 + 1.5 && refined.1 < network.1 + 1.5, "{text}");
 }

@@ -15,7 +15,8 @@
 //! fingers and thumbs, whose errors otherwise weigh like any limb's.
 //!
 //! Methods are the networks ([`Method::Network`]) and the kinematic solver
-//! ([`Method::Kinematic`], the "optimization-based" column, `locap_nn::kinematic`).
+//! ([`Method::Kinematic`], the "optimization-based" column, `locap_nn::kinematic`), and a
+//! network's answer refined by the kinematic solver ([`Method::Refined`]).
 //!
 //! Each take is solved exactly as `locap solve` solves a real one
 //! ([`Solver::solve_cleaned`]): bone offsets averaged over the take, root from the waist
@@ -132,6 +133,8 @@ pub enum Method<'a> {
     Network(&'a Solver),
     /// The kinematic solver.
     Kinematic(&'a KinematicSolver),
+    /// A network's answer refined by the kinematic solver ([`KinematicSolver::refine`]).
+    Refined(&'a Solver, &'a KinematicSolver),
 }
 
 impl Method<'_> {
@@ -139,14 +142,14 @@ impl Method<'_> {
     pub fn rotating(&self) -> Vec<bool> {
         match self {
             Method::Network(s) => s.meta.rotating.clone(),
-            Method::Kinematic(k) => k.rotating(),
+            Method::Kinematic(k) | Method::Refined(_, k) => k.rotating(),
         }
     }
 
     fn skeleton(&self) -> &locap_core::Skeleton {
         match self {
             Method::Network(s) => &s.meta.skeleton,
-            Method::Kinematic(k) => k.skeleton(),
+            Method::Kinematic(k) | Method::Refined(_, k) => k.skeleton(),
         }
     }
 
@@ -158,6 +161,7 @@ impl Method<'_> {
         match self {
             Method::Network(s) => s.solve_cleaned(cleaned, rate_hz),
             Method::Kinematic(k) => k.solve_cleaned(cleaned, rate_hz).map(|(m, _)| m),
+            Method::Refined(s, k) => k.refine(cleaned, rate_hz, &s.solve_cleaned(cleaned, rate_hz)?).map(|(m, _)| m),
         }
     }
 }

@@ -25,9 +25,9 @@
 
 use crate::NnError;
 use locap_clean::{CleanConfig, Cleaned, Filler};
-use locap_core::{Motion, Skeleton, Take, UpAxis, Vec3};
+use locap_core::{Motion, Quat, Skeleton, Take, UpAxis, Vec3};
 use locap_label::ik::{
-    Attachment, DofAxis, JointCentre, JointCoupling, JointDofs, MarkerModel, SequenceConfig, solve_sequence,
+    Attachment, DofAxis, JointCentre, JointCoupling, JointDofs, MarkerModel, SequenceConfig, solve_sequence_with_prior,
 };
 use locap_synth::Layout;
 
@@ -189,7 +189,14 @@ pub struct KinematicSolver {
     constrained: Vec<bool>,
     /// Settings of the calibration and the per-frame fit.
     pub config: SequenceConfig,
+    /// [`IkConfig::prior`](locap_label::ik::IkConfig::prior) of [`KinematicSolver::refine`]:
+    /// how hard the network's pose holds against the markers.
+    pub refine_prior: f64,
 }
+
+/// [`KinematicSolver::refine_prior`] by default, per rad^2: 10 degrees off the network's
+/// joint rotation weigh as a marker 3 mm off (the kinematic preset's observed term).
+pub const REFINE_PRIOR: f64 = 3.0;
 
 /// What a solve did besides the motion.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
@@ -250,7 +257,13 @@ impl KinematicSolver {
         if let Some(dofs) = dofs {
             model = model.with_dofs(dofs).map_err(config_error)?;
         }
-        Ok(KinematicSolver { model, markers: bound.names, constrained, config: SequenceConfig::default() })
+        Ok(KinematicSolver {
+            model,
+            markers: bound.names,
+            constrained,
+            config: SequenceConfig::default(),
+            refine_prior: REFINE_PRIOR,
+        })
     }
 
     /// A layout that carries its skeleton (see [`locap_synth::layout::LayoutSkeleton`]), with
@@ -481,10 +494,62 @@ impl KinematicSolver {
         if take.frame_count() == 0 {
             return Err(NnError::EmptyTake);
         }
+        self.solve_frames(cleaned, rate_hz, None)
+    }
+
+    /// [`KinematicSolver::solve_cleaned`] with every frame pulled towards `prior`'s joint
+    /// rotations (joints matched by name; [`KinematicSolver::refine_prior`] the pull): another
+    /// solver's answer (a network's) refined by the markers. The network knows how people
+    /// move where the markers say little (twists, fingers); the fit puts the joints where the
+    /// markers are.
+    ///
+    /// # Errors
+    /// As [`KinematicSolver::solve_cleaned`], or `prior` has another frame count.
+    pub fn refine(
+        &self,
+        cleaned: &Cleaned,
+        rate_hz: f64,
+        prior: &Motion,
+    ) -> Result<(Motion, KinematicReport), NnError> {
+        let frames = cleaned.take().frame_count();
+        if prior.frame_count() != frames {
+            return Err(NnError::Kinematic(format!(
+                "the motion to refine has {} frames, the take {frames}",
+                prior.frame_count()
+            )));
+        }
+        let joints = self.model.skeleton().joints();
+        let from: Vec<Option<usize>> = joints.iter().map(|j| prior.skeleton.index_of(&j.name)).collect();
+        let poses: Vec<Vec<Quat>> = (0..frames)
+            .map(|f| {
+                let local = prior.local_rotations(f);
+                from.iter().map(|k| k.map_or_else(Quat::identity, |k| local[k])).collect()
+            })
+            .collect();
+        self.solve_frames(cleaned, rate_hz, Some(&poses))
+    }
+
+    fn solve_frames(
+        &self,
+        cleaned: &Cleaned,
+        rate_hz: f64,
+        prior: Option<&[Vec<Quat>]>,
+    ) -> Result<(Motion, KinematicReport), NnError> {
+        let take = cleaned.take();
+        if !self.fits(take) {
+            return Err(self.marker_set_error(take));
+        }
+        if take.frame_count() == 0 {
+            return Err(NnError::EmptyTake);
+        }
         let started = std::time::Instant::now();
         let frames = self.observed_frames(cleaned);
         let model = self.lab_model(take.up_axis);
-        let fit = solve_sequence(model, &frames, rate_hz, &self.config).map_err(config_error)?;
+        let mut config = self.config;
+        if prior.is_some() {
+            config.ik.prior = self.refine_prior;
+        }
+        let fit = solve_sequence_with_prior(model, &frames, rate_hz, &config, prior).map_err(config_error)?;
         let rms = fit.rms_mm(&frames);
         let skeleton = fit.model.skeleton().clone();
         let rotations = fit.poses.iter().flat_map(|(local, _)| local.iter().copied()).collect();

@@ -55,6 +55,10 @@ pub struct Args {
     /// skeleton must have the same joints.
     #[arg(long, value_name = "LAYOUT", requires = "kinematic", help_heading = "Input")]
     kinematic_layout: Option<PathBuf>,
+    /// Also score each model's answer refined by the kinematic solver (the network's joint
+    /// rotations as its prior; named `MODEL+ik`).
+    #[arg(long, requires = "kinematic", help_heading = "Input")]
+    refine: bool,
     /// Write the results as JSON.
     #[arg(long, value_name = "FILE", help_heading = "Output")]
     json: Option<PathBuf>,
@@ -155,6 +159,9 @@ pub fn run(args: Args) -> Result<ExitCode> {
         refs.push(("kinematic".into(), Method::Kinematic(k)));
     }
     refs.extend(solvers.iter().map(|(n, s)| (n.clone(), Method::Network(s))));
+    if let (Some(k), true) = (&kinematic, args.refine) {
+        refs.extend(solvers.iter().map(|(n, s)| (format!("{n}+ik"), Method::Refined(s, k))));
+    }
     // The joints the CMU layout's markers constrain, when the data is on the CMU skeleton.
     let names = |sk: &locap_core::Skeleton| sk.joints().iter().map(|j| j.name.clone()).collect::<Vec<_>>();
     let constrained = match &kinematic {
@@ -264,8 +271,16 @@ fn real_rows(
         }
         for (name, solver) in solvers {
             let t0 = std::time::Instant::now();
-            let (motion, _) = solver.solve(&take, filler).with_context(|| format!("{}", take_path.display()))?;
-            solved.push((name.clone(), motion, solver.meta.rotating.clone(), t0.elapsed().as_secs_f64()));
+            let (motion, cleaned) = solver.solve(&take, filler).with_context(|| format!("{}", take_path.display()))?;
+            let seconds = t0.elapsed().as_secs_f64();
+            if let (Some(k), true) = (kinematic, args.refine) {
+                let (refined, _) = k
+                    .refine(&cleaned, take.frame_rate_hz(), &motion)
+                    .with_context(|| format!("{}", take_path.display()))?;
+                let total = t0.elapsed().as_secs_f64();
+                solved.push((format!("{name}+ik"), refined, k.rotating(), total));
+            }
+            solved.push((name.clone(), motion, solver.meta.rotating.clone(), seconds));
         }
         for (name, motion, rotating, seconds) in solved {
             let comparison = compare_motions(&motion, &reference, &rotating)

@@ -15,7 +15,9 @@
 //! `--layout` (with a skeleton section, e.g. from `locap layout --from-opensim`, or with
 //! `--skeleton`), by default the CMU 41-marker layout on the shipped solver's skeleton. The
 //! default `--method auto` uses the network where its markers are all in the take and the
-//! kinematic solver elsewhere, saying so. A kinematic solve reports its marker residual and
+//! kinematic solver elsewhere, saying so. `--method refine` runs the network, then the kinematic
+//! solver pulled towards the network's joint rotations (`KinematicSolver::refine`): the
+//! network's prior where the markers say little, the markers' fit where they see. A kinematic solve reports its marker residual and
 //! its tracking checks of issue 17: the largest joint rotation between consecutive frames, the
 //! frame pairs over 20 degrees, and the wrist joints' samples within 60 mm of their wrist
 //! markers' mean (`locap_eval::solver::wrists_within`), which needs no reference motion.
@@ -91,8 +93,9 @@ pub struct Args {
     #[arg(long, hide = true, conflicts_with = "refiner")]
     no_refiner: bool,
     /// How to solve: `network` (the solver model), `ik` (the kinematic solver: a layout and a
-    /// skeleton, no training), `auto`: the network where its markers are all in the take,
-    /// else `ik`.
+    /// skeleton, no training), `refine` (the network's answer refined by the kinematic
+    /// solver: the network's joint rotations pull, the markers place), `auto`: the network
+    /// where its markers are all in the take, else `ik`.
     #[arg(long, value_enum, default_value_t = Method::Auto, help_heading = "Solver")]
     method: Method,
     /// Layout for the kinematic solver (TOML or JSON) with a skeleton section (e.g. from
@@ -118,6 +121,8 @@ pub enum Method {
     Network,
     /// The kinematic solver (`--layout`, or the CMU 41-marker layout).
     Ik,
+    /// The network's answer refined by the kinematic solver (both as above).
+    Refine,
 }
 
 /// The kinematic solver the arguments ask for.
@@ -210,7 +215,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
     };
     let kinematic = match args.method {
         Method::Network => None,
-        Method::Ik | Method::Auto => {
+        Method::Ik | Method::Auto | Method::Refine => {
             let mut k = kinematic_solver(args.layout.as_deref(), args.skeleton.as_deref())?;
             if args.no_wrist_centres {
                 k.config.joint_centre_weight = 0.0;
@@ -245,7 +250,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
         let filler =
             locap_nn::filler_for(&take, FillConfig { method: args.fill.into(), ..FillConfig::default() }, &refiners)?;
         let use_ik = match (args.method, &kinematic) {
-            (Method::Ik, _) => true,
+            (Method::Ik | Method::Refine, _) => true,
             (Method::Auto, Some(k)) => {
                 let network_fits = locap_nn::features::marker_order(&take, &solver.meta.markers).is_ok();
                 if !network_fits && k.fits(&take) {
@@ -261,7 +266,13 @@ pub fn run(args: Args) -> Result<ExitCode> {
         };
         let (motion, cleaned, residual_mm, tracking) = match (&kinematic, use_ik) {
             (Some(k), true) => {
-                let (motion, cleaned, report) = k.solve(&take, filler.as_ref())?;
+                let (motion, cleaned, report) = if args.method == Method::Refine {
+                    let (network, cleaned) = solver.solve(&take, filler.as_ref())?;
+                    let (motion, report) = k.refine(&cleaned, take.frame_rate_hz(), &network)?;
+                    (motion, cleaned, report)
+                } else {
+                    k.solve(&take, filler.as_ref())?
+                };
                 // The motion is still in the skeleton's frame, as the checks compare it.
                 let (jump, joint, over) = rotation_jumps(&motion, &k.rotating(), 20.0);
                 let wrists = wrists_within(&motion, cleaned.take(), 60.0).map(|(share, _)| share);
@@ -312,7 +323,8 @@ pub fn run(args: Args) -> Result<ExitCode> {
     for (path, s) in &done {
         let mut method = match s.residual_mm {
             Some((r, (before, after), scale)) => format!(
-                ", kinematic, marker residual {r:.1} mm RMS; calibration {before:.1} -> {after:.1} mm, scale {scale:.3}"
+                ", {}, marker residual {r:.1} mm RMS; calibration {before:.1} -> {after:.1} mm, scale {scale:.3}",
+                if args.method == Method::Refine { "network refined by the kinematic solver" } else { "kinematic" }
             ),
             None => String::new(),
         };
