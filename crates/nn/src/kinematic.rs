@@ -501,7 +501,7 @@ impl KinematicSolver {
     /// rotations (joints matched by name; [`KinematicSolver::refine_prior`] the pull): another
     /// solver's answer (a network's) refined by the markers. The network knows how people
     /// move where the markers say little (twists, fingers); the fit puts the joints where the
-    /// markers are.
+    /// markers are. A joint `prior` lacks is pulled towards its rest orientation as hard.
     ///
     /// # Errors
     /// As [`KinematicSolver::solve_cleaned`], or `prior` has another frame count.

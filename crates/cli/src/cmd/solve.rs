@@ -15,10 +15,10 @@
 //! `--layout` (with a skeleton section, e.g. from `locap layout --from-opensim`, or with
 //! `--skeleton`), by default the CMU 41-marker layout on the shipped solver's skeleton. The
 //! default `--method auto` uses the network where its markers are all in the take and the
-//! kinematic solver elsewhere, saying so. `--method refine` runs the network, then the kinematic
-//! solver pulled towards the network's joint rotations (`KinematicSolver::refine`): the
-//! network's prior where the markers say little, the markers' fit where they see. A kinematic solve reports its marker residual and
-//! its tracking checks of issue 17: the largest joint rotation between consecutive frames, the
+//! kinematic solver elsewhere, saying so. `--method refine` runs the network, then the
+//! kinematic solver pulled towards the network's joint rotations (`KinematicSolver::refine`):
+//! the network's prior where the markers say little, the markers' fit where they see. A
+//! kinematic solve reports its marker residual and its tracking checks of issue 17: the largest joint rotation between consecutive frames, the
 //! frame pairs over 20 degrees, and the wrist joints' samples within 60 mm of their wrist
 //! markers' mean (`locap_eval::solver::wrists_within`), which needs no reference motion.
 //!
