@@ -14,10 +14,9 @@
 //! # Skeleton and fit ([`fit_art_hand`])
 //! One skeleton per hand: root `LHand` at the wrist; per finger three joints and an end site
 //! (`LIndex1` knuckle, `LIndex2`, `LIndex3`, `LIndex3_End` tip, the name a BVH reader gives the
-//! end site). The hand frame is built per
-//! frame from the wrist and the knuckles: `x` from the wrist to the middle knuckle, `y` the
-//! back of the hand (the side the fingertips curl away from, decided from the data), `z = x
-//! cross y`. At rest (identity rotations) the four fingers are straight along `x`, the
+//! end site). The hand frame is built per frame from the wrist and the knuckles: `x` from the
+//! wrist to the middle knuckle, `y` the back of the hand (the side the fingertips curl away
+//! from, decided from the data), `z = x cross y`. At rest (identity rotations) the four fingers are straight along `x`, the
 //! knuckles where the capture puts them on average, and the thumb in its average pose. Each
 //! joint's local rotation is the smallest rotation turning its rest bone onto the captured
 //! bone (swing; the twist about a bone is not observable from joint positions and stays 0).
@@ -38,8 +37,7 @@
 //! finger statistics, `LTHM3`, `LIDX6`, ...), all on the back of the hand.
 
 use crate::layout::{Dof, Follow, Layout, LayoutJoint, LayoutMarker, LayoutSkeleton, Region};
-use locap_core::UpAxis;
-use locap_core::{EulerOrder, Joint, Motion, Quat, Skeleton, SkeletonError, Take, Vec3};
+use locap_core::{EulerOrder, Joint, Motion, Quat, Skeleton, SkeletonError, Take, UpAxis, Vec3};
 use rand::{Rng, RngExt};
 use serde::{Deserialize, Serialize};
 
