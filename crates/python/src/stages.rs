@@ -13,8 +13,10 @@ use locap_clean::swaps::SwapConfig;
 use locap_clean::{CleanConfig, Cleaned, FillConfig, FillMethod, neighbours::Selection};
 use locap_core::Motion;
 use locap_label::{FitConfig, LabelConfig, Template};
+use locap_nn::kinematic::KinematicSolver;
 use locap_nn::solver::Solver;
 use locap_nn::{Refiner, RefinerSource};
+use locap_synth::Layout;
 use numpy::IntoPyArray;
 use numpy::ndarray::{Array2, Array3};
 use numpy::{PyArray2, PyArray3};
@@ -244,20 +246,31 @@ pub struct PyMotion {
     cleaned: PyTake,
 }
 
-/// `locap.solve(take, ...)`: the whole `locap solve` pipeline (swaps, outliers, EDM fill
-/// refined by the shipped refiner when it fits the take, then the motion solver). `model`: a
-/// solver from `locap train solve` (default: the built-in CMU 41-marker solver); `refiner`: a
-/// refiner model (default: the shipped ones that fit); `no_refiner`: EDM alone.
+/// `locap.solve(take, ...)`: the whole `locap solve` pipeline (swaps, outliers, the fill,
+/// then the motion solver). `model`: a solver from `locap train solve` (default: the built-in
+/// CMU 41-marker solver); `refiner`: a refiner model; `method`: as `locap solve --method`
+/// (`auto`, `network`, `ik`, `refine`); `layout`: the kinematic solver's layout, with a
+/// skeleton section (default: the CMU 41-marker layout).
 #[pyfunction]
-#[pyo3(signature = (take, *, model = None, fill = "auto", refiner = None))]
+#[pyo3(signature = (take, *, model = None, fill = "auto", refiner = None, method = "auto", layout = None))]
 pub fn solve(
     py: Python<'_>,
     take: PyRef<'_, PyTake>,
     model: Option<PathBuf>,
     fill: &str,
     refiner: Option<PathBuf>,
+    method: &str,
+    layout: Option<PathBuf>,
 ) -> PyResult<PyMotion> {
     let (fill_method, refine) = fill_method(fill)?;
+    if !["auto", "network", "ik", "refine"].contains(&method) {
+        return Err(usage(format!("method {method:?}: one of auto, network, ik, refine")));
+    }
+    let kinematic = match &layout {
+        _ if method == "network" => None,
+        None => Some(KinematicSolver::cmu41().map_err(|e| failure(None, &e.into()))?),
+        Some(path) => Some(read_kinematic(path).map_err(|e| failure(Some(path), &e))?),
+    };
     let model_bytes = read_models(model.as_slice())?.pop();
     let refiner_bytes = read_models(refiner.as_slice())?.pop();
     let load = |device: &_| match &model_bytes {
@@ -292,7 +305,26 @@ pub fn solve(
                 FillConfig { method: fill_method, ..FillConfig::default() },
                 &source,
             )?;
-            let (motion, cleaned) = solver.solve(&inner.take, filler.as_ref())?;
+            // As `locap solve --method`: `auto` takes the kinematic solver only where the
+            // network's markers are not all in the take and the layout's are.
+            let use_ik = match (method, &kinematic) {
+                ("ik" | "refine", _) => true,
+                ("auto", Some(k)) => {
+                    locap_nn::features::marker_order(&inner.take, &solver.meta.markers).is_err() && k.fits(&inner.take)
+                }
+                _ => false,
+            };
+            let (motion, cleaned) = match (&kinematic, use_ik) {
+                (Some(k), true) if method == "refine" => {
+                    let (network, cleaned) = solver.solve(&inner.take, filler.as_ref())?;
+                    (k.refine(&cleaned, inner.take.frame_rate_hz(), &network)?.0, cleaned)
+                }
+                (Some(k), true) => {
+                    let (motion, cleaned, _) = k.solve(&inner.take, filler.as_ref())?;
+                    (motion, cleaned)
+                }
+                _ => solver.solve(&inner.take, filler.as_ref())?,
+            };
             // In the animation tools' Y-up frame, as `locap solve` writes it.
             let lab = solver.meta.lab;
             let motion = locap_io::axes::motion_to_tools_y_up(&motion, lab.motion_to_lab_rotation(), lab.up_axis());
@@ -306,6 +338,16 @@ pub fn solve(
     markers.record = Some(record);
     markers.report = Some(clean_report(&cleaned));
     Ok(PyMotion { motion, cleaned: markers })
+}
+
+/// The kinematic solver on a layout file (TOML, or JSON by extension) that carries its
+/// skeleton.
+fn read_kinematic(path: &Path) -> anyhow::Result<KinematicSolver> {
+    let text = std::fs::read_to_string(path).with_context(|| format!("{}: cannot read layout", path.display()))?;
+    let json = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("json"));
+    let layout = if json { Layout::from_json(&text) } else { Layout::from_toml(&text) };
+    let layout = layout.with_context(|| path.display().to_string())?;
+    KinematicSolver::from_layout(&layout).with_context(|| path.display().to_string())
 }
 
 impl PyMotion {

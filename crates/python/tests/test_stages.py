@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import locap
-from conftest import EXAMPLE, run_cli
+from conftest import EXAMPLE, REPO, run_cli
 
 
 def test_clean_fills_the_example_and_writes_the_bytes_of_locap_clean(cli, tmp_path):
@@ -72,6 +72,24 @@ def test_solve_gives_the_motion_and_files_of_locap_solve(cli, tmp_path):
     run_cli(cli, "solve", EXAMPLE, "-o", tmp_path / "cli.bvh", "--markers-out", tmp_path / "cli.c3d")
     assert (tmp_path / "py.bvh").read_bytes() == (tmp_path / "cli.bvh").read_bytes()
     assert (tmp_path / "py.c3d").read_bytes() == (tmp_path / "cli.c3d").read_bytes()
+
+
+def test_solve_methods_match_locap_solve(cli, tmp_path):
+    """``method="ik"`` and ``"refine"`` write what ``locap solve --method`` writes, and a
+    method that does not exist is an error naming the choices."""
+    take = locap.read(EXAMPLE)
+    for method in ("ik", "refine"):
+        locap.solve(take, method=method).write_bvh(tmp_path / f"py-{method}.bvh")
+        run_cli(cli, "solve", EXAMPLE, "--method", method, "-o", tmp_path / f"cli-{method}.bvh")
+        assert (tmp_path / f"py-{method}.bvh").read_bytes() == (tmp_path / f"cli-{method}.bvh").read_bytes()
+    # The two solve differently (the network's rotations pull the refined fit).
+    assert (tmp_path / "py-ik.bvh").read_bytes() != (tmp_path / "py-refine.bvh").read_bytes()
+    with pytest.raises(ValueError, match="one of auto, network, ik, refine"):
+        locap.solve(take, method="magic")
+    # A layout without a skeleton cannot be solved kinematically: the error names the file.
+    plain = REPO / "crates" / "synth" / "layouts" / "cmu41.toml"
+    with pytest.raises(locap.Error, match="cmu41.toml.*skeleton"):
+        locap.solve(take, method="ik", layout=plain)
 
 
 def test_label_names_a_shuffled_take_as_locap_label(cli, tmp_path):

@@ -133,10 +133,16 @@ def solve(
     model: Optional[_Path] = None,
     fill: str = "auto",
     refiner: Optional[_Path] = None,
+    method: str = "auto",
+    layout: Optional[_Path] = None,
 ) -> Motion:
     """``locap solve``: cleaning (``fill`` as ``clean``'s ``method``; a refiner only with
     ``fill="neural"`` or ``refiner=``), then the motion solver (built-in CMU 41-marker by
-    default). The motion is in the animation tools' Y-up frame, as ``locap solve`` writes it."""
+    default). ``method`` as ``locap solve --method``: ``auto`` (the network where its markers
+    are in the take, else the kinematic solver), ``network``, ``ik`` (the kinematic solver on
+    ``layout``, a layout with a skeleton section; default the CMU 41-marker layout) or
+    ``refine`` (the network's answer refined by the kinematic solver). The motion is in the
+    animation tools' Y-up frame, as ``locap solve`` writes it."""
 
 def bench_fill(
     takes: Sequence[Union[Take, _Path]],

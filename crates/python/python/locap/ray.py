@@ -277,7 +277,7 @@ def solve(
 ) -> List[Dict[str, Any]]:
     """``locap solve PATHS... -o OUT_DIR [--markers-out DIR]`` on a Ray cluster: one C3D or
     TRC take per task, BVH out. ``options`` are :func:`locap.solve`'s (``model``,
-    ``fill``, ``refiner``)."""
+    ``fill``, ``refiner``, ``method``, ``layout``)."""
     return _fan_out(
         "solve", paths_or_folders, out_dir, ("c3d", "trc"), "bvh", options, markers_out, address, num_cpus
     )
