@@ -6,6 +6,7 @@
 //! cargo run -p locap-eval --release --example auto_fill -- [--takes 85_02,85_12,135_02,hdm05,kneel,rolling]
 //!     [--seed 0] [--per-length 5] [--blend 2] [--trials 3] [--context 2] [--markers 10]
 //!     [--pca-markers 41] [--pca-context 30] [--pca-fit 500] [--interpolate 100] [--least-squares]
+//!     [--neighbour-trials 2] [--neighbour-weight 0.5]
 //! ```
 //!
 //! Every constant of `AutoConfig::default` was chosen on CMU 85_12 with seeds other than 0;
@@ -44,6 +45,7 @@ fn main() {
     }
     set(get("--trials"), "--trials", &mut config.trials);
     set(get("--neighbour-trials"), "--neighbour-trials", &mut config.neighbour_trials);
+    set(get("--neighbour-weight"), "--neighbour-weight", &mut config.neighbour_weight);
     set(get("--context"), "--context", &mut config.context_s);
     set(get("--pca-context"), "--pca-context", &mut config.pca_context_s);
     set(get("--pca-fit"), "--pca-fit", &mut config.pca_fit_frames);
