@@ -199,7 +199,8 @@ pub struct AutoConfig {
     /// marker with its neighbours (the rigid fill on a plate of four markers loses one of its
     /// donors there, not in the real gap), so at full weight it judges them too harshly; it
     /// still decides where the windows elsewhere in time cannot (an arm gap in a pose the take
-    /// never repeats).
+    /// never repeats). Unlike the other defaults, 0.5 was chosen on all six protocol inputs,
+    /// the two other labs' takes included (docs/benchmarks.md).
     pub neighbour_weight: f64,
 }
 
