@@ -219,19 +219,14 @@ fn hands_then_synth() {
         .output()
         .unwrap();
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    let mean = mean_joint_error_deg(&solved, &take.with_extension("bvh"));
+    let (mean, _) = joint_errors(&solved, &take.with_extension("bvh"));
     assert!(mean < 12.0, "finger joints off by {mean:.2} degrees on average");
 }
 
-/// Mean angle (degrees) between the local rotations of the joints of a solved BVH and the
-/// true motion's (matched by name; root and end sites left out), over every frame.
-fn mean_joint_error_deg(solved: &Path, truth: &Path) -> f64 {
-    joint_errors(solved, truth).0
-}
-
-/// The mean joint rotation error (degrees, as [`mean_joint_error_deg`]) and the mean joint
-/// position error (mm) in the root's frame (every joint and end site but the root; the frame
-/// each file is written in does not matter), of a solved BVH against the true motion.
+/// A solved BVH against the true motion, over every frame: the mean joint rotation error
+/// (degrees: the angle between the local rotations of the joints matched by name, root and
+/// end sites left out) and the mean joint position error (mm) in the root's frame (every
+/// joint and end site but the root; the frame each file is written in does not matter).
 fn joint_errors(solved: &Path, truth: &Path) -> (f64, f64) {
     let read = |p: &Path| locap_io::bvh::read_bvh_path(p, locap_core::LengthUnit::Centimetre).unwrap();
     let (solved, truth) = (read(solved), read(truth));

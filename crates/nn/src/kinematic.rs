@@ -423,6 +423,12 @@ impl KinematicSolver {
         found * 2 >= self.markers.len() && found >= 3
     }
 
+    /// The rule of `locap solve --method auto`: this solver takes `take` instead of `network`
+    /// where the network's markers are not all in the take and this layout's are.
+    pub fn solves_instead_of(&self, network: &crate::solver::Solver, take: &Take) -> bool {
+        crate::features::marker_order(take, &network.meta.markers).is_err() && self.fits(take)
+    }
+
     /// The whole pipeline on a raw take: cleaned as `locap clean` does (swaps and outliers;
     /// gaps filled by `filler`, for the cleaned markers only), then solved
     /// ([`KinematicSolver::solve_cleaned`]).

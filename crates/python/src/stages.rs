@@ -305,13 +305,10 @@ pub fn solve(
                 FillConfig { method: fill_method, ..FillConfig::default() },
                 &source,
             )?;
-            // As `locap solve --method`: `auto` takes the kinematic solver only where the
-            // network's markers are not all in the take and the layout's are.
+            // As `locap solve --method`.
             let use_ik = match (method, &kinematic) {
                 ("ik" | "refine", _) => true,
-                ("auto", Some(k)) => {
-                    locap_nn::features::marker_order(&inner.take, &solver.meta.markers).is_err() && k.fits(&inner.take)
-                }
+                ("auto", Some(k)) => k.solves_instead_of(&solver, &inner.take),
                 _ => false,
             };
             let (motion, cleaned) = match (&kinematic, use_ik) {

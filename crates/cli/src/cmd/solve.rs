@@ -252,15 +252,15 @@ pub fn run(args: Args) -> Result<ExitCode> {
         let use_ik = match (args.method, &kinematic) {
             (Method::Ik | Method::Refine, _) => true,
             (Method::Auto, Some(k)) => {
-                let network_fits = locap_nn::features::marker_order(&take, &solver.meta.markers).is_ok();
-                if !network_fits && k.fits(&take) {
+                let instead = k.solves_instead_of(&solver, &take);
+                if instead {
                     eprintln!(
                         "{}: the solver model was trained on another marker set; solving with the kinematic solver (--method ik{})",
                         input.display(),
                         args.layout.as_ref().map_or(String::new(), |p| format!(", layout {}", p.display()))
                     );
                 }
-                !network_fits && k.fits(&take)
+                instead
             }
             _ => false,
         };
