@@ -6,7 +6,7 @@
 //! cargo run -p locap-eval --release --example auto_fill -- [--takes 85_02,85_12,135_02,hdm05,kneel,rolling]
 //!     [--seed 0] [--per-length 5] [--blend 2] [--trials 3] [--context 2] [--markers 10]
 //!     [--pca-markers 41] [--pca-context 30] [--pca-fit 500] [--interpolate 100] [--least-squares]
-//!     [--neighbour-trials 2] [--neighbour-weight 0.5]
+//!     [--neighbour-trials 2] [--neighbour-weight 0.5] [--score pooled|mean|median]
 //! ```
 //!
 //! Every constant of `AutoConfig::default` was chosen on CMU 85_12 with seeds other than 0;
@@ -52,6 +52,14 @@ fn main() {
     set(get("--interpolate"), "--interpolate", &mut config.interpolate_s);
     set(get("--markers"), "--markers", &mut config.markers);
     set(get("--pca-markers"), "--pca-markers", &mut config.pca_markers);
+    if let Some(score) = get("--score") {
+        config.score = match score.as_str() {
+            "pooled" => auto::TrialScore::Pooled,
+            "mean" => auto::TrialScore::MeanOfTrials,
+            "median" => auto::TrialScore::MedianOfTrials,
+            other => panic!("--score: `{other}` is none of pooled, mean, median"),
+        };
+    }
     eprintln!("{config:?}, {protocol:?}");
     let mut takes = Vec::new();
     for name in get("--takes").unwrap_or_else(|| "85_02,85_12,135_02,hdm05".into()).split(',') {
