@@ -318,6 +318,9 @@ impl KinematicSolver {
         // few degrees where the markers insist (10 degrees off an axis weigh as a marker 17 mm
         // off). The CMU skeleton's locks are the ASF's own and stay stiff.
         solver.config.ik.locked = SOFT_LOCK;
+        if let Some(smooth) = section.smoothness {
+            solver.config.ik.smooth = smooth;
+        }
         Ok(solver)
     }
 
@@ -569,5 +572,24 @@ impl KinematicSolver {
             scale: fit.scale,
         };
         Ok((motion, report))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A layout's skeleton sets the solver's smoothness weight; without one the default holds.
+    #[test]
+    fn a_layouts_smoothness_weight_is_the_solvers() {
+        let shipped = include_str!("../../synth/layouts/hand-left.toml");
+        let layout = Layout::from_toml(shipped).unwrap();
+        let solver = KinematicSolver::from_layout(&layout).unwrap();
+        assert_eq!(solver.config.ik.smooth, locap_synth::hand::HAND_SMOOTHNESS);
+        let mut plain = layout.clone();
+        plain.skeleton.as_mut().unwrap().smoothness = None;
+        let solver = KinematicSolver::from_layout(&plain).unwrap();
+        assert_eq!(solver.config.ik.smooth, SequenceConfig::default().ik.smooth);
+        assert_ne!(solver.config.ik.smooth, locap_synth::hand::HAND_SMOOTHNESS);
     }
 }

@@ -468,6 +468,12 @@ pub fn hand_layout(skeleton: &Skeleton, side: Side, dorsal_mm: f64) -> Result<La
 /// real hand (the fitted ART capture) goes a little beyond the procedural motion's ranges.
 pub const RANGE_MARGIN_DEG: f64 = 10.0;
 
+/// The kinematic solver's smoothness weight for a hand ([`LayoutSkeleton::smoothness`]): the
+/// body's 100 holds fingers that move further per frame (60 Hz) and whose markers weigh less
+/// against a rotation; 10 was best of 1, 3, 10 and 100 on a validation set of procedural hand
+/// takes apart from the test takes (docs/benchmarks.md, "Kinematic hand solver").
+pub const HAND_SMOOTHNESS: f64 = 10.0;
+
 /// `skeleton` (from [`fit_art_hand`]) with each joint's rotational freedom, so a layout
 /// carrying it solves with no training (`locap solve --method ik`): the root free; each
 /// finger's knuckle flexion (about `z`, towards the palm is negative) and abduction (about
@@ -475,7 +481,8 @@ pub const RANGE_MARGIN_DEG: f64 = 10.0;
 /// [`RANGE_MARGIN_DEG`]; the thumb's three joints about `y` and `z` within its range around
 /// the rest pose; end sites without rotation; each finger's distal joint following its
 /// proximal interphalangeal one by [`FingerLimits::dip_coupling`]. Twist about a bone is not a
-/// freedom of any finger joint, as in the fit (swing only).
+/// freedom of any finger joint, as in the fit (swing only); the smoothness weight
+/// [`HAND_SMOOTHNESS`].
 pub fn hand_skeleton(skeleton: &Skeleton, limits: &FingerLimits) -> LayoutSkeleton {
     let m = RANGE_MARGIN_DEG;
     let dof = |name: &str, axis: [f64; 3], min_deg: f64, max_deg: f64| Dof {
@@ -525,7 +532,7 @@ pub fn hand_skeleton(skeleton: &Skeleton, limits: &FingerLimits) -> LayoutSkelet
             }
         })
         .collect();
-    LayoutSkeleton { up_axis: UpAxis::Y, joints: layout_joints }
+    LayoutSkeleton { up_axis: UpAxis::Y, smoothness: Some(HAND_SMOOTHNESS), joints: layout_joints }
 }
 
 #[cfg(test)]

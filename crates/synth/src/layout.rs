@@ -38,6 +38,8 @@
 //! ```toml
 //! [skeleton]
 //! up_axis = "Y"             # the rest frame's vertical axis
+//! smoothness = 10.0         # optional: the kinematic solver's smoothness weight for this
+//!                           # skeleton (default: the body's, 100)
 //! [[skeleton.joint]]
 //! name = "pelvis"           # the root: no parent
 //! offset_mm = [0.0, 0.0, 0.0]
@@ -179,6 +181,12 @@ pub struct Layout {
 pub struct LayoutSkeleton {
     /// Vertical axis of the rest frame (joint frames are aligned with it at rest).
     pub up_axis: UpAxis,
+    /// Weight of the kinematic solver's temporal smoothness term for this skeleton
+    /// (`locap_label::ik::IkConfig::smooth`); `None`: the solver's default, set for a body
+    /// at 120 Hz. A hand's fingers move further per frame, and their markers weigh less
+    /// against a rotation, than a body's limbs.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub smoothness: Option<f64>,
     /// The joints, parents first; the first is the root.
     #[serde(rename = "joint")]
     pub joints: Vec<LayoutJoint>,
@@ -253,6 +261,9 @@ impl LayoutSkeleton {
                 }
             }
             joints.push(Joint::new(j.name.clone(), parent, Vec3::from(j.offset_mm)));
+        }
+        if let Some(w) = self.smoothness.filter(|w| !(w.is_finite() && *w >= 0.0)) {
+            return bad(format!("smoothness {w} is not a weight (finite, at least 0)"));
         }
         for j in &self.joints {
             let Some(f) = &j.follows else { continue };
@@ -467,6 +478,25 @@ blend = { joint = "lower", weight = 0.5 }
         assert!(matches!(Layout::from_toml(&huge), Err(LayoutError::BadNumber { what: "offset_mm", .. })));
         let unknown = Layout::from_toml(&TEXT.replace("joint = \"lower\"", "joint = \"shin\"")).unwrap();
         assert!(matches!(unknown.bind(&arm()), Err(LayoutError::UnknownJoint { .. })));
+    }
+
+    /// A skeleton's smoothness weight is read, written back and checked.
+    #[test]
+    fn a_skeletons_smoothness_round_trips_and_must_be_a_weight() {
+        let with = |w: &str| {
+            format!(
+                "{TEXT}[skeleton]\nup_axis = \"Y\"\nsmoothness = {w}\n[[skeleton.joint]]\nname = \"upper\"\noffset_mm = [0.0, 0.0, 0.0]\n"
+            )
+        };
+        let layout = Layout::from_toml(&with("10.0")).unwrap();
+        let section = layout.skeleton.as_ref().unwrap();
+        assert_eq!(section.smoothness, Some(10.0));
+        assert!(section.to_skeleton().is_ok());
+        assert_eq!(Layout::from_toml(&layout.to_toml()).unwrap(), layout);
+        for bad in ["-1.0", "nan", "inf"] {
+            let err = Layout::from_toml(&with(bad)).unwrap_err();
+            assert!(err.to_string().contains("smoothness"), "{bad}: {err}");
+        }
     }
 
     #[test]

@@ -469,7 +469,7 @@ pub fn layout_from_opensim(model: XmlSource, markers: Option<XmlSource>) -> Resu
         ),
         aliases: Default::default(),
         markers: layout_markers,
-        skeleton: Some(LayoutSkeleton { up_axis: UpAxis::Y, joints: layout_joints }),
+        skeleton: Some(LayoutSkeleton { up_axis: UpAxis::Y, smoothness: None, joints: layout_joints }),
     };
     layout.check().map_err(|e| r.err(Problem::Layout(e)))?;
     Ok(layout)
