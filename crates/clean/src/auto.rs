@@ -29,9 +29,9 @@
 //!    [`FillMethod::Spline`], [`FillMethod::Linear`]) fills each trial; each is scored by its
 //!    RMSE over the hidden samples of `i` in each trial, averaged over the trials
 //!    ([`TrialScore::MeanOfTrials`]; a neighbour trial's RMSE counts at a quarter,
-//!    [`AutoConfig::neighbour_weight`]). A sample a candidate leaves
-//!    missing counts with the error of the reference candidate there (linear inside the take,
-//!    EDM at its edges), the fill it would fall back to;
+//!    [`AutoConfig::neighbour_weight`]). A sample a candidate leaves missing counts with the
+//!    error of the reference candidate there (linear inside the take, EDM at its edges), the
+//!    fill it would fall back to;
 //! 3. the real gap is filled with the inverse-squared-RMSE blend of the best
 //!    [`AutoConfig::blend`] candidates (1: the best alone), per frame over the candidates that
 //!    filled that frame (the reference where none did). With no qualifying trial window (a
@@ -198,13 +198,14 @@ pub struct AutoConfig {
     /// hidden there in its turn (where captured) and filled by every candidate.
     pub neighbour_trials: usize,
     /// Scale of the neighbour trials' errors in a candidate's score (0.25: a neighbour
-    /// trial's RMSE counts a quarter of a window's in the mean). A neighbour trial hides one of the marker's best
-    /// neighbours, a poorer neighbourhood than the real gap has for the methods that carry the
-    /// marker with its neighbours (the rigid fill on a plate of four markers loses one of its
-    /// donors there, not in the real gap), so at full weight it judges them too harshly; it
-    /// still decides where the windows elsewhere in time cannot (an arm gap in a pose the take
-    /// never repeats). Unlike the other defaults, 0.25 was chosen on all six protocol takes,
-    /// the two other labs' takes included, each held out in turn (docs/benchmarks.md).
+    /// trial's RMSE counts a quarter of a window's in the mean). A neighbour trial hides one
+    /// of the marker's best neighbours, a poorer neighbourhood than the real gap has for the
+    /// methods that carry the marker with its neighbours (the rigid fill on a plate of four
+    /// markers loses one of its donors there, not in the real gap), so at full weight it
+    /// judges them too harshly; it still decides where the windows elsewhere in time cannot
+    /// (an arm gap in a pose the take never repeats). Unlike the other defaults, 0.25 was
+    /// chosen on all six protocol takes, the two other labs' takes included, each held out in
+    /// turn (docs/benchmarks.md).
     pub neighbour_weight: f64,
 }
 
