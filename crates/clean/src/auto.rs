@@ -84,6 +84,14 @@
 //!   neighbourhood than the real gap. Without them another lab's plate-marker take and the
 //!   short take gained and an arm gap was lost; scaled down the gains mostly stay and the
 //!   arm gap with them (docs/benchmarks.md).
+//! - A marker on a rigid plate is not left to the trials: where its three steadiest
+//!   neighbours keep their distances to it within 1 mm (standard deviation over the take,
+//!   [`AutoConfig::rigid_cluster_mm`]) and are captured throughout the gap, the rigid fill
+//!   alone fills it. Physics makes it exact there, and the trials, which on a short take
+//!   see few windows and at the gap's own frames a plate with a partner hidden, only add
+//!   noise. Body-worn markers of the 41-marker set never qualify (the steadiest head
+//!   marker's third neighbour varies by 3.3 mm), and a 62-marker set's plates all do
+//!   (0.2-1.0 mm; 1.5 changed little, 2 took in the feet and was worse; docs/benchmarks.md).
 //! - PCA sees a wider window (30 s each side) than the other candidates (2 s): its
 //!   covariance gains from more poses, EDM's ranking and the interpolations do not.
 //! - The PCA candidate is the paper's PCA in the aligned frame ([`FillMethod::PcaAligned`]),
@@ -124,6 +132,9 @@ pub const CANDIDATES: [FillMethod; 6] = [
     FillMethod::Spline,
     FillMethod::Linear,
 ];
+
+/// Markers besides one that fix a rigid body's pose: the partners of a rigid cluster.
+const CLUSTER_PARTNERS: usize = 3;
 
 /// Smallest RMSE (mm) used for a blend weight: a trial filled exactly does not take all the
 /// weight on the strength of a few samples.
@@ -207,6 +218,11 @@ pub struct AutoConfig {
     /// chosen on all six protocol takes, the two other labs' takes included, each held out in
     /// turn (docs/benchmarks.md).
     pub neighbour_weight: f64,
+    /// Largest standard deviation (mm) of the distance between a marker and each of its three
+    /// steadiest neighbours over the take for the four to count as one rigid cluster (a marker
+    /// plate): where all three are captured throughout a gap and its borders, the rigid fill
+    /// alone fills it, exactly up to the markers' noise, whatever the trials measured (0: never).
+    pub rigid_cluster_mm: f64,
 }
 
 impl AutoConfig {
@@ -237,6 +253,7 @@ impl Default for AutoConfig {
             seed: 15,
             neighbour_trials: 2,
             neighbour_weight: 0.25,
+            rigid_cluster_mm: 1.0,
         }
     }
 }
@@ -455,9 +472,14 @@ impl Context<'_> {
         } else {
             scores.iter().map(|(c, _)| *c).collect()
         };
-        let chosen: Vec<FillMethod> = ranking.iter().copied().take(self.config.blend.max(1)).collect();
-        let weights: Vec<f64> = if scores.is_empty() {
-            // The default ranking has no errors: equal weights.
+        let cluster = self.rides_a_rigid_cluster(marker, gap, edge);
+        let chosen: Vec<FillMethod> = if cluster {
+            vec![FillMethod::Rigid]
+        } else {
+            ranking.iter().copied().take(self.config.blend.max(1)).collect()
+        };
+        let weights: Vec<f64> = if scores.is_empty() || cluster {
+            // The default ranking has no errors, and a rigid cluster's one fill needs none.
             vec![1.0; chosen.len()]
         } else {
             let rmse: Vec<f64> =
@@ -627,6 +649,26 @@ impl Context<'_> {
             .filter(|j| span.clone().all(|f| self.take.is_valid(f, *j)))
             .take(self.config.neighbour_trials)
             .collect()
+    }
+
+    /// Whether `marker` and its three steadiest neighbours form a rigid cluster
+    /// ([`AutoConfig::rigid_cluster_mm`]) whose other three are captured throughout `gap` and
+    /// its borders.
+    fn rides_a_rigid_cluster(&self, marker: usize, gap: Gap, edge: Edge) -> bool {
+        let limit = self.config.rigid_cluster_mm;
+        if limit <= 0.0 {
+            return false;
+        }
+        let frames = self.take.frame_count();
+        let span = captured_span(edge, gap.start, gap.len);
+        let span = span.start.min(frames)..span.end.min(frames);
+        let mut steadiest: Vec<(usize, f64)> =
+            self.ranked[marker].iter().copied().filter(|(_, v)| v.is_finite()).collect();
+        steadiest.sort_by(|a, b| a.1.total_cmp(&b.1));
+        steadiest.len() >= CLUSTER_PARTNERS
+            && steadiest[..CLUSTER_PARTNERS]
+                .iter()
+                .all(|(j, v)| v.sqrt() <= limit && span.clone().all(|f| self.take.is_valid(f, *j)))
     }
 
     /// Starts of the trial windows for `gap` of `marker`, nearest first.
@@ -930,6 +972,22 @@ mod tests {
         let leads: usize = out.by_method().iter().map(|(_, gaps, _)| gaps).sum();
         let samples: usize = out.by_method().iter().map(|(_, _, samples)| samples).sum();
         assert_eq!((leads, samples), (3, 122));
+    }
+
+    /// A marker riding a rigid cluster (a plate) whose other markers are captured is filled by
+    /// the rigid fill alone, recorded with its trials; with the rule off, by the trials' blend.
+    #[test]
+    fn a_marker_plate_is_filled_by_the_rigid_fill_alone() {
+        let truth = cluster(900, |i| format!("M{i}"));
+        let mut holed = truth.clone();
+        hide(&mut holed, 0, 300..360);
+        let out = fill(&holed, &AutoConfig::default());
+        let [choice] = out.choices.as_slice() else { panic!("{:?}", out.choices) };
+        assert_eq!(choice.weights, vec![(FillMethod::Rigid, 1.0)]);
+        assert_eq!(choice.method(), "rigid");
+        assert!(choice.trials > 0 && !choice.trial_rmse_mm.is_empty());
+        let off = fill(&holed, &AutoConfig { rigid_cluster_mm: 0.0, ..AutoConfig::default() });
+        assert_eq!(off.choices[0].weights.len(), 2, "{}", off.choices[0].method());
     }
 
     /// An edge gap is filled only where EDM's edge rules reach; unlabeled points not at all.

@@ -7,6 +7,7 @@
 //!     [--seed 0] [--per-length 5] [--blend 2] [--trials 3] [--context 2] [--markers 10]
 //!     [--pca-markers 41] [--pca-context 30] [--pca-fit 500] [--interpolate 100] [--least-squares]
 //!     [--neighbour-trials 2] [--neighbour-weight 0.5] [--score pooled|mean|median]
+//!     [--rigid-cluster 1.0]
 //! ```
 //!
 //! Every constant of `AutoConfig::default` was chosen on CMU 85_12 with seeds other than 0;
@@ -52,6 +53,7 @@ fn main() {
     set(get("--interpolate"), "--interpolate", &mut config.interpolate_s);
     set(get("--markers"), "--markers", &mut config.markers);
     set(get("--pca-markers"), "--pca-markers", &mut config.pca_markers);
+    set(get("--rigid-cluster"), "--rigid-cluster", &mut config.rigid_cluster_mm);
     if let Some(score) = get("--score") {
         config.score = match score.as_str() {
             "pooled" => auto::TrialScore::Pooled,
