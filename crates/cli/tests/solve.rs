@@ -140,6 +140,19 @@ fn eval_prints_table_one() {
     let out = eval().output().unwrap();
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("one reference per take"));
+    // A refine prior that is not a weight is refused, naming the option.
+    let out = eval()
+        .arg("--reference")
+        .arg(data.join("cmu-asfamc/02/02_01.amc"))
+        .args(["--kinematic", "--refine", "--refine-prior=-1"])
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    assert!(
+        String::from_utf8_lossy(&out.stderr).contains("--refine-prior -1"),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
 }
 
 /// The second body model (`models/solver-cmu41-v2.locapsv`: mirrored motions and wider subject

@@ -198,6 +198,14 @@ pub struct KinematicSolver {
 /// joint rotation weigh as a marker 3 mm off (the kinematic preset's observed term).
 pub const REFINE_PRIOR: f64 = 3.0;
 
+/// [`KinematicSolver::refine_prior`] of the CMU body solver ([`KinematicSolver::cmu41`]): the
+/// body networks turn joints the 41 markers barely see (wrists, feet, spine) better than the
+/// markers do, so their pose holds harder than a hand's: 10 degrees off weigh as a marker
+/// 16 mm off. Of 1, 3, 10, 30 and 100 on a validation take (CMU 01_01's motion synthesized;
+/// no network was trained on it, nor is it a test take), 30 was best for both shipped body
+/// networks but for one mixed result at 100 (docs/benchmarks.md).
+pub const BODY_REFINE_PRIOR: f64 = 30.0;
+
 /// What a solve did besides the motion.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct KinematicReport {
@@ -368,7 +376,9 @@ impl KinematicSolver {
             .enumerate()
             .map(|(j, (d, r))| if *r || j == 0 { d } else { JointDofs::Axes(Vec::new()) })
             .collect();
-        KinematicSolver::new(&Layout::cmu41(), skeleton, Some(dofs))
+        let mut solver = KinematicSolver::new(&Layout::cmu41(), skeleton, Some(dofs))?;
+        solver.refine_prior = BODY_REFINE_PRIOR;
+        Ok(solver)
     }
 
     /// The same solver with joints that lie at the mean of markers around them, by name: the

@@ -59,6 +59,10 @@ pub struct Args {
     /// rotations as its prior; named `MODEL+ik`).
     #[arg(long, requires = "kinematic", help_heading = "Input")]
     refine: bool,
+    /// How hard the network's joint rotations hold against the markers in `--refine`, per
+    /// rad^2 (default: the solver's, `locap_nn::kinematic::REFINE_PRIOR`).
+    #[arg(long, value_name = "WEIGHT", requires = "refine", help_heading = "Input")]
+    refine_prior: Option<f64>,
     /// Write the results as JSON.
     #[arg(long, value_name = "FILE", help_heading = "Output")]
     json: Option<PathBuf>,
@@ -149,6 +153,10 @@ pub fn run(args: Args) -> Result<ExitCode> {
         let mut k = crate::cmd::solve::kinematic_solver(args.kinematic_layout.as_deref(), None)?;
         if args.no_wrist_centres {
             k.config.joint_centre_weight = 0.0;
+        }
+        if let Some(w) = args.refine_prior {
+            anyhow::ensure!(w.is_finite() && w >= 0.0, "--refine-prior {w} is not a weight (finite, at least 0)");
+            k.refine_prior = w;
         }
         Some(k)
     } else {
