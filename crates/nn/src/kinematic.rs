@@ -194,8 +194,9 @@ pub struct KinematicSolver {
     pub refine_prior: f64,
 }
 
-/// [`KinematicSolver::refine_prior`] by default, per rad^2: 10 degrees off the network's
-/// joint rotation weigh as a marker 3 mm off (the kinematic preset's observed term).
+/// [`KinematicSolver::refine_prior`] of a solver built from a layout's skeleton (the hands),
+/// per rad^2: 10 degrees off the network's joint rotation weigh as a marker 3 mm off (the
+/// kinematic preset's observed term).
 pub const REFINE_PRIOR: f64 = 3.0;
 
 /// [`KinematicSolver::refine_prior`] of the CMU body solver ([`KinematicSolver::cmu41`]): the

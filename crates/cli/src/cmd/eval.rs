@@ -60,7 +60,8 @@ pub struct Args {
     #[arg(long, requires = "kinematic", help_heading = "Input")]
     refine: bool,
     /// How hard the network's joint rotations hold against the markers in `--refine`, per
-    /// rad^2 (default: the solver's, `locap_nn::kinematic::REFINE_PRIOR`).
+    /// rad^2 (default: the solver's, `locap_nn::kinematic::BODY_REFINE_PRIOR` for the CMU
+    /// body, `REFINE_PRIOR` on a layout's skeleton).
     #[arg(long, value_name = "WEIGHT", requires = "refine", help_heading = "Input")]
     refine_prior: Option<f64>,
     /// Write the results as JSON.
