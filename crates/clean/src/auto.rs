@@ -638,17 +638,22 @@ impl Context<'_> {
     /// Neighbours of `marker` (best first, at most [`AutoConfig::neighbour_trials`]) captured
     /// throughout `gap` and its borders: they are hidden at the gap's own frames as trials.
     fn neighbour_trials(&self, marker: usize, gap: Gap, edge: Edge) -> Vec<usize> {
-        let frames = self.take.frame_count();
-        let span = captured_span(edge, gap.start, gap.len);
-        let span = span.start.min(frames)..span.end.min(frames);
         self.ranked[marker]
             .iter()
             .filter(|(_, v)| v.is_finite())
             .map(|(j, _)| *j)
             .filter(|j| !self.take.markers()[*j].is_unlabeled())
-            .filter(|j| span.clone().all(|f| self.take.is_valid(f, *j)))
+            .filter(|j| self.captured_around(*j, gap, edge))
             .take(self.config.neighbour_trials)
             .collect()
+    }
+
+    /// Whether marker `j` is captured throughout `gap` and its borders (one border at the
+    /// take's edges).
+    fn captured_around(&self, j: usize, gap: Gap, edge: Edge) -> bool {
+        let frames = self.take.frame_count();
+        let span = captured_span(edge, gap.start, gap.len);
+        (span.start.min(frames)..span.end.min(frames)).all(|f| self.take.is_valid(f, j))
     }
 
     /// Whether `marker` and its three steadiest neighbours form a rigid cluster
@@ -659,16 +664,13 @@ impl Context<'_> {
         if limit <= 0.0 {
             return false;
         }
-        let frames = self.take.frame_count();
-        let span = captured_span(edge, gap.start, gap.len);
-        let span = span.start.min(frames)..span.end.min(frames);
         let mut steadiest: Vec<(usize, f64)> =
             self.ranked[marker].iter().copied().filter(|(_, v)| v.is_finite()).collect();
         steadiest.sort_by(|a, b| a.1.total_cmp(&b.1));
         steadiest.len() >= CLUSTER_PARTNERS
             && steadiest[..CLUSTER_PARTNERS]
                 .iter()
-                .all(|(j, v)| v.sqrt() <= limit && span.clone().all(|f| self.take.is_valid(f, *j)))
+                .all(|(j, v)| v.sqrt() <= limit && self.captured_around(*j, gap, edge))
     }
 
     /// Starts of the trial windows for `gap` of `marker`, nearest first.
@@ -680,14 +682,12 @@ impl Context<'_> {
             return Vec::new();
         }
         let span = |s: usize| captured_span(edge, s, len);
-        let real = span(gap.start);
-        let real = real.start.min(frames)..real.end.min(frames);
         let checked: Vec<usize> = self.ranked[marker]
             .iter()
             .filter(|(_, v)| v.is_finite())
             .map(|(j, _)| *j)
             .take(CHECKED_NEIGHBOURS)
-            .filter(|j| real.clone().all(|f| take.is_valid(f, *j)))
+            .filter(|j| self.captured_around(*j, gap, edge))
             .collect();
         let fits = |s: usize| -> bool {
             let r = span(s);
