@@ -18,6 +18,18 @@ fn solve_writes_bvh_with_the_takes_frames_and_rate() {
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let text = String::from_utf8(out.stdout).unwrap();
     assert!(text.contains("343 frames at 120 Hz"), "{text}");
+    // The default refines the network's answer with the kinematic solver (`locap_nn::method`):
+    // measured, every wrist joint within 60 mm of its markers' mean (the network alone: 78%)
+    // and no joint turning more than 20 degrees between frames.
+    assert!(text.contains("network refined by the kinematic solver"), "{text}");
+    assert!(text.contains(", 0 frame pairs over 20 deg"), "{text}");
+    let wrists: f64 = text
+        .split("wrists within 60 mm of their markers ")
+        .nth(1)
+        .and_then(|rest| rest.split('%').next())
+        .and_then(|share| share.parse().ok())
+        .unwrap_or_else(|| panic!("no wrist check in {text}"));
+    assert!(wrists >= 99.0, "{text}");
     let motion = locap_io::bvh::read_bvh_path(&bvh, locap_core::LengthUnit::Centimetre).unwrap();
     assert_eq!(motion.frame_count(), 343);
     assert!((motion.frame_rate_hz() - 120.0).abs() < 1e-6);
@@ -166,7 +178,8 @@ fn the_second_body_model_turns_joints_closer_to_cmus_solution() {
     let solved_against_cmu = |model: Option<&str>| {
         let bvh = dir.path().join("02_01.bvh");
         let mut c = locap();
-        c.arg("solve").arg(data.join("cmu-c3d/02_01.c3d")).arg("-o").arg(&bvh);
+        // The networks alone, not refined (the default): their own rotations are compared.
+        c.arg("solve").arg(data.join("cmu-c3d/02_01.c3d")).args(["--method", "network", "-o"]).arg(&bvh);
         if let Some(m) = model {
             c.arg("--model").arg(repo().join(m));
         }

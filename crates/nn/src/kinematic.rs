@@ -443,6 +443,13 @@ impl KinematicSolver {
         crate::features::marker_order(take, &network.meta.markers).is_err() && self.fits(take)
     }
 
+    /// True when this solver can refine `network`'s answers ([`KinematicSolver::refine`]):
+    /// every joint of its skeleton is one of the network's, by name. (A joint the network
+    /// lacks would be held at its rest orientation.)
+    pub fn refines(&self, network: &crate::solver::Solver) -> bool {
+        self.model.skeleton().joints().iter().all(|j| network.meta.skeleton.index_of(&j.name).is_some())
+    }
+
     /// The whole pipeline on a raw take: cleaned as `locap clean` does (swaps and outliers;
     /// gaps filled by `filler`, for the cleaned markers only), then solved
     /// ([`KinematicSolver::solve_cleaned`]).

@@ -21,6 +21,8 @@
 //! * [`shipped`]: the trained refiners and solver built into locap.
 //! * [`kinematic`]: the solver that needs no network: the labeler's IK with a subject
 //!   calibration, for any layout (the baseline the networks must beat).
+//! * [`method`]: a take solved by the network, the kinematic solver or both, and the rule of
+//!   the default ([`method::solve_take`]).
 //!
 //! No module reads or writes files: training takes `Take`s and shard readers, checkpoints go
 //! to a [`harness::Checkpointer`], and reports give their loss curves as data series
@@ -31,6 +33,7 @@ pub mod file;
 pub mod harness;
 pub mod kinematic;
 pub mod limits;
+pub mod method;
 pub mod refiner;
 pub mod refiners;
 pub mod shipped;

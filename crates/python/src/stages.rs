@@ -14,6 +14,7 @@ use locap_clean::{CleanConfig, Cleaned, FillConfig, FillMethod, neighbours::Sele
 use locap_core::Motion;
 use locap_label::{FitConfig, LabelConfig, Template};
 use locap_nn::kinematic::KinematicSolver;
+use locap_nn::method::{SolveMethod, solve_take};
 use locap_nn::solver::Solver;
 use locap_nn::{Refiner, RefinerSource};
 use locap_synth::Layout;
@@ -263,11 +264,15 @@ pub fn solve(
     layout: Option<PathBuf>,
 ) -> PyResult<PyMotion> {
     let (fill_method, refine) = fill_method(fill)?;
-    if !["auto", "network", "ik", "refine"].contains(&method) {
-        return Err(usage(format!("method {method:?}: one of auto, network, ik, refine")));
-    }
+    let method = match method {
+        "auto" => SolveMethod::Auto,
+        "network" => SolveMethod::Network,
+        "ik" => SolveMethod::Kinematic,
+        "refine" => SolveMethod::Refine,
+        other => return Err(usage(format!("method {other:?}: one of auto, network, ik, refine"))),
+    };
     let kinematic = match &layout {
-        _ if method == "network" => None,
+        _ if method == SolveMethod::Network => None,
         None => Some(KinematicSolver::cmu41().map_err(|e| failure(None, &e.into()))?),
         Some(path) => Some(read_kinematic(path).map_err(|e| failure(Some(path), &e))?),
     };
@@ -306,22 +311,8 @@ pub fn solve(
                 &source,
             )?;
             // As `locap solve --method`.
-            let use_ik = match (method, &kinematic) {
-                ("ik" | "refine", _) => true,
-                ("auto", Some(k)) => k.solves_instead_of(&solver, &inner.take),
-                _ => false,
-            };
-            let (motion, cleaned) = match (&kinematic, use_ik) {
-                (Some(k), true) if method == "refine" => {
-                    let (network, cleaned) = solver.solve(&inner.take, filler.as_ref())?;
-                    (k.refine(&cleaned, inner.take.frame_rate_hz(), &network)?.0, cleaned)
-                }
-                (Some(k), true) => {
-                    let (motion, cleaned, _) = k.solve(&inner.take, filler.as_ref())?;
-                    (motion, cleaned)
-                }
-                _ => solver.solve(&inner.take, filler.as_ref())?,
-            };
+            let solved = solve_take(&inner.take, filler.as_ref(), &solver, kinematic.as_ref(), method)?;
+            let (motion, cleaned) = (solved.motion, solved.cleaned);
             // In the animation tools' Y-up frame, as `locap solve` writes it.
             let lab = solver.meta.lab;
             let motion = locap_io::axes::motion_to_tools_y_up(&motion, lab.motion_to_lab_rotation(), lab.up_axis());

@@ -75,10 +75,10 @@ def test_solve_gives_the_motion_and_files_of_locap_solve(cli, tmp_path):
 
 
 def test_solve_methods_match_locap_solve(cli, tmp_path):
-    """``method="ik"`` and ``"refine"`` write what ``locap solve --method`` writes, and a
+    """``method="network"``, ``"ik"`` and ``"refine"`` write what ``locap solve --method`` writes, and a
     method that does not exist is an error naming the choices."""
     take = locap.read(EXAMPLE)
-    for method in ("ik", "refine"):
+    for method in ("network", "ik", "refine"):
         locap.solve(take, method=method).write_bvh(tmp_path / f"py-{method}.bvh")
         run_cli(cli, "solve", EXAMPLE, "--method", method, "-o", tmp_path / f"cli-{method}.bvh")
         assert (tmp_path / f"py-{method}.bvh").read_bytes() == (tmp_path / f"cli-{method}.bvh").read_bytes()

@@ -13,14 +13,16 @@
 //! `--method ik` solves with the kinematic solver instead (`locap_nn::kinematic`: the labeler's
 //! IK after a subject calibration on the take, no training), for any marker set with a layout:
 //! `--layout` (with a skeleton section, e.g. from `locap layout --from-opensim`, or with
-//! `--skeleton`), by default the CMU 41-marker layout on the shipped solver's skeleton. The
-//! default `--method auto` uses the network where its markers are all in the take and the
-//! kinematic solver elsewhere, saying so. `--method refine` runs the network, then the
-//! kinematic solver pulled towards the network's joint rotations (`KinematicSolver::refine`):
-//! the network's prior where the markers say little, the markers' fit where they see. A
-//! kinematic solve reports its marker residual and its tracking checks of issue 17: the largest joint rotation between consecutive frames, the
-//! frame pairs over 20 degrees, and the wrist joints' samples within 60 mm of their wrist
-//! markers' mean (`locap_eval::solver::wrists_within`), which needs no reference motion.
+//! `--skeleton`), by default the CMU 41-marker layout on the shipped solver's skeleton.
+//! `--method refine` runs the network, then the kinematic solver pulled towards the network's
+//! joint rotations (`KinematicSolver::refine`): the network's prior where the markers say
+//! little, the markers' fit where they see. The default `--method auto` refines wherever the
+//! network's markers are all in the take and solves with the kinematic solver alone elsewhere,
+//! saying so (`locap_nn::method`: the rule and why; `--method network` is the network alone).
+//! A kinematic solve or refinement reports its marker residual, and every solve its tracking
+//! checks of issue 17: the largest joint rotation between consecutive frames, the frame pairs over 20
+//! degrees, and the wrist joints' samples within 60 mm of their wrist markers' mean
+//! (`locap_eval::solver::wrists_within`), which needs no reference motion.
 //!
 //! Without `--model`, the solver shipped with locap is used (`locap_nn::shipped::solver`,
 //! `models/solver-cmu41.locapsv`: the CMU 41-marker set on the CMU ASF skeleton, built into the
@@ -37,6 +39,7 @@ use locap_core::{LengthUnit, UpAxis};
 use locap_eval::solver::{rotation_jumps, wrists_within};
 use locap_io::{axes, export};
 use locap_nn::kinematic::KinematicSolver;
+use locap_nn::method::{SolveMethod, TakeSolve};
 use locap_nn::solver::Solver;
 use locap_nn::{Refiner, RefinerSource};
 use std::path::{Path, PathBuf};
@@ -94,8 +97,9 @@ pub struct Args {
     no_refiner: bool,
     /// How to solve: `network` (the solver model), `ik` (the kinematic solver: a layout and a
     /// skeleton, no training), `refine` (the network's answer refined by the kinematic
-    /// solver: the network's joint rotations pull, the markers place), `auto`: the network
-    /// where its markers are all in the take, else `ik`.
+    /// solver: the network's joint rotations pull, the markers place), `auto`: `refine` where
+    /// the network's markers are all in the take, else `ik` (`network` is 30 times faster,
+    /// and its wrists leave their markers: docs/benchmarks.md).
     #[arg(long, value_enum, default_value_t = Method::Auto, help_heading = "Solver")]
     method: Method,
     /// Layout for the kinematic solver (TOML or JSON) with a skeleton section (e.g. from
@@ -115,7 +119,8 @@ pub struct Args {
 /// Solving methods on the command line.
 #[derive(Debug, Clone, Copy, ValueEnum, PartialEq, Eq)]
 pub enum Method {
-    /// The network where its markers are all in the take, else the kinematic solver.
+    /// The network refined by the kinematic solver where the network's markers are all in
+    /// the take, else the kinematic solver (`locap_nn::method`).
     Auto,
     /// The network solver (`--model` or the shipped one).
     Network,
@@ -123,6 +128,17 @@ pub enum Method {
     Ik,
     /// The network's answer refined by the kinematic solver (both as above).
     Refine,
+}
+
+impl From<Method> for SolveMethod {
+    fn from(method: Method) -> SolveMethod {
+        match method {
+            Method::Auto => SolveMethod::Auto,
+            Method::Network => SolveMethod::Network,
+            Method::Ik => SolveMethod::Kinematic,
+            Method::Refine => SolveMethod::Refine,
+        }
+    }
 }
 
 /// The kinematic solver the arguments ask for.
@@ -150,13 +166,15 @@ struct Solved {
     frames: usize,
     rate_hz: f64,
     seconds: f64,
+    /// The method that solved it (`auto` resolved).
+    method: SolveMethod,
     /// The kinematic solver's marker residual (mm RMS), calibration residual before and after
     /// (mm RMS) and subject scale, when it solved.
     residual_mm: Option<(f64, (f64, f64), f64)>,
-    /// The kinematic solve's tracking checks (issue 17): the largest rotation of a joint
-    /// between consecutive frames (deg) and its joint, the frame pairs over 20 degrees, and the
-    /// share of wrist samples within 60 mm of their markers' mean (`None`: no known wrist).
-    tracking: Option<(f64, String, usize, Option<f64>)>,
+    /// The tracking checks (issue 17): the largest rotation of a joint between consecutive
+    /// frames (deg) and its joint, the frame pairs over 20 degrees, and the share of wrist
+    /// samples within 60 mm of their markers' mean (`None`: no known wrist).
+    tracking: (f64, String, usize, Option<f64>),
 }
 
 /// Where each input's output goes: `output` itself for one named file, else a mirror of the
@@ -249,41 +267,26 @@ pub fn run(args: Args) -> Result<ExitCode> {
         let solver = load_solver(&device)?;
         let filler =
             locap_nn::filler_for(&take, FillConfig { method: args.fill.into(), ..FillConfig::default() }, &refiners)?;
-        let use_ik = match (args.method, &kinematic) {
-            (Method::Ik | Method::Refine, _) => true,
-            (Method::Auto, Some(k)) => {
-                let instead = k.solves_instead_of(&solver, &take);
-                if instead {
-                    eprintln!(
-                        "{}: the solver model was trained on another marker set; solving with the kinematic solver (--method ik{})",
-                        input.display(),
-                        args.layout.as_ref().map_or(String::new(), |p| format!(", layout {}", p.display()))
-                    );
-                }
-                instead
-            }
-            _ => false,
+        let solved =
+            locap_nn::method::solve_take(&take, filler.as_ref(), &solver, kinematic.as_ref(), args.method.into())?;
+        if args.method == Method::Auto && solved.method == SolveMethod::Kinematic {
+            eprintln!(
+                "{}: the solver model was trained on another marker set; solving with the kinematic solver (--method ik{})",
+                input.display(),
+                args.layout.as_ref().map_or(String::new(), |p| format!(", layout {}", p.display()))
+            );
+        }
+        let TakeSolve { motion, cleaned, method, report } = solved;
+        // The tracking checks, for every method; the motion is still in the skeleton's frame,
+        // as they compare it.
+        let rotating = match (&kinematic, &report) {
+            (Some(k), Some(_)) => k.rotating(),
+            _ => solver.meta.rotating.clone(),
         };
-        let (motion, cleaned, residual_mm, tracking) = match (&kinematic, use_ik) {
-            (Some(k), true) => {
-                let (motion, cleaned, report) = if args.method == Method::Refine {
-                    let (network, cleaned) = solver.solve(&take, filler.as_ref())?;
-                    let (motion, report) = k.refine(&cleaned, take.frame_rate_hz(), &network)?;
-                    (motion, cleaned, report)
-                } else {
-                    k.solve(&take, filler.as_ref())?
-                };
-                // The motion is still in the skeleton's frame, as the checks compare it.
-                let (jump, joint, over) = rotation_jumps(&motion, &k.rotating(), 20.0);
-                let wrists = wrists_within(&motion, cleaned.take(), 60.0).map(|(share, _)| share);
-                let residual = (report.residual_rms_mm, report.calibration_rms_mm, report.scale);
-                (motion, cleaned, Some(residual), Some((jump, joint, over, wrists)))
-            }
-            _ => {
-                let (motion, cleaned) = solver.solve(&take, filler.as_ref())?;
-                (motion, cleaned, None, None)
-            }
-        };
+        let (jump, joint, over) = rotation_jumps(&motion, &rotating, 20.0);
+        let wrists = wrists_within(&motion, cleaned.take(), 60.0).map(|(share, _)| share);
+        let tracking = (jump, joint, over, wrists);
+        let residual_mm = report.map(|r| (r.residual_rms_mm, r.calibration_rms_mm, r.scale));
         let seconds = t0.elapsed().as_secs_f64();
         inputs::create_parent(&targets[i])?;
         let lab = solver.meta.lab;
@@ -314,6 +317,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
             frames: motion.frame_count(),
             rate_hz: motion.frame_rate_hz(),
             seconds,
+            method,
             residual_mm,
             tracking,
         })
@@ -324,16 +328,14 @@ pub fn run(args: Args) -> Result<ExitCode> {
         let mut method = match s.residual_mm {
             Some((r, (before, after), scale)) => format!(
                 ", {}, marker residual {r:.1} mm RMS; calibration {before:.1} -> {after:.1} mm, scale {scale:.3}",
-                if args.method == Method::Refine { "network refined by the kinematic solver" } else { "kinematic" }
+                s.method.describe()
             ),
-            None => String::new(),
+            None => format!(", {}", s.method.describe()),
         };
-        if let Some((jump, joint, over, wrists)) = &s.tracking {
-            method
-                .push_str(&format!("; largest rotation jump {jump:.1} deg ({joint}), {over} frame pairs over 20 deg"));
-            if let Some(share) = wrists {
-                method.push_str(&format!(", wrists within 60 mm of their markers {:.1}%", 100.0 * share));
-            }
+        let (jump, joint, over, wrists) = &s.tracking;
+        method.push_str(&format!("; largest rotation jump {jump:.1} deg ({joint}), {over} frame pairs over 20 deg"));
+        if let Some(share) = wrists {
+            method.push_str(&format!(", wrists within 60 mm of their markers {:.1}%", 100.0 * share));
         }
         text.push_str(&format!(
             "{}: {} frames at {} Hz -> {} ({:.0} frames/s{method})\n",
