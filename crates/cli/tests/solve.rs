@@ -165,6 +165,48 @@ fn eval_prints_table_one() {
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
+    // So is a prior window that is not a time.
+    let out = eval()
+        .arg("--reference")
+        .arg(data.join("cmu-asfamc/02/02_01.amc"))
+        .args(["--kinematic", "--refine", "--prior-window=nan"])
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    assert!(
+        String::from_utf8_lossy(&out.stderr).contains("--prior-window NaN"),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+/// Issue 17's tracking checks on a real take of a subject the network never saw (CMU 85_12,
+/// 4499 frames), solved as a user solves it: no joint turns more than 20 degrees between
+/// consecutive frames and the wrist joints stay within 60 mm of their markers. Measured: 0
+/// frame pairs (largest 15.9 degrees) and 100% of the wrists; with each frame's own network
+/// rotations as the prior, 2 pairs (21.8 degrees); the network alone 1 pair and 40% of the
+/// wrists (docs/benchmarks.md, "The network's flicker").
+#[test]
+fn the_default_solve_holds_joints_steady_and_wrists_on_their_markers() {
+    let Some(data) = shared_data() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let out = locap()
+        .arg("solve")
+        .arg(data.join("cmu-c3d/85_12.c3d"))
+        .arg("-o")
+        .arg(dir.path().join("x.bvh"))
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let text = String::from_utf8(out.stdout).unwrap();
+    assert!(text.contains(", 0 frame pairs over 20 deg"), "{text}");
+    let wrists: f64 = text
+        .split("wrists within 60 mm of their markers ")
+        .nth(1)
+        .and_then(|rest| rest.split('%').next())
+        .and_then(|share| share.parse().ok())
+        .unwrap_or_else(|| panic!("no wrist check in {text}"));
+    assert!(wrists >= 99.0, "{text}");
 }
 
 /// The second body model (`models/solver-cmu41-v2.locapsv`: mirrored motions and wider subject

@@ -192,6 +192,10 @@ pub struct KinematicSolver {
     /// [`IkConfig::prior`](locap_label::ik::IkConfig::prior) of [`KinematicSolver::refine`]:
     /// how hard the network's pose holds against the markers.
     pub refine_prior: f64,
+    /// Half-width (seconds) of the window over which [`KinematicSolver::refine`] averages the
+    /// network's joint rotations before they pull: a per-frame network flickers from frame to
+    /// frame, and its flicker is no evidence of motion ([`PRIOR_HALF_WINDOW_S`]; 0: as given).
+    pub prior_half_window_s: f64,
 }
 
 /// [`KinematicSolver::refine_prior`] of a solver built from a layout's skeleton (the hands),
@@ -206,6 +210,14 @@ pub const REFINE_PRIOR: f64 = 3.0;
 /// no network was trained on it, nor is it a test take), 30 was best for both shipped body
 /// networks but for one mixed result at 100 (docs/benchmarks.md).
 pub const BODY_REFINE_PRIOR: f64 = 30.0;
+
+/// [`KinematicSolver::prior_half_window_s`] by default: each joint's prior rotation is the mean
+/// over 0.2 s on each side. Of 0.05, 0.1, 0.2 and 0.4 s on the body's validation take (CMU
+/// 01_01's motion synthesized) and the left hand's (procedural takes of another seed), 0.2 s
+/// was best or within 0.1 degrees of it on both; on the real body takes it removes the few
+/// frame pairs where a joint turned over 20 degrees (docs/benchmarks.md, "The network's
+/// flicker").
+pub const PRIOR_HALF_WINDOW_S: f64 = 0.2;
 
 /// What a solve did besides the motion.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
@@ -272,6 +284,7 @@ impl KinematicSolver {
             constrained,
             config: SequenceConfig::default(),
             refine_prior: REFINE_PRIOR,
+            prior_half_window_s: PRIOR_HALF_WINDOW_S,
         })
     }
 
@@ -525,7 +538,8 @@ impl KinematicSolver {
     }
 
     /// [`KinematicSolver::solve_cleaned`] with every frame pulled towards `prior`'s joint
-    /// rotations (joints matched by name; [`KinematicSolver::refine_prior`] the pull): another
+    /// rotations (joints matched by name; [`KinematicSolver::refine_prior`] the pull; each averaged
+    /// over [`KinematicSolver::prior_half_window_s`] on each side): another
     /// solver's answer (a network's) refined by the markers. The network knows how people
     /// move where the markers say little (twists, fingers); the fit puts the joints where the
     /// markers are. A joint `prior` lacks is pulled towards its rest orientation as hard.
@@ -553,6 +567,8 @@ impl KinematicSolver {
                 from.iter().map(|k| k.map_or_else(Quat::identity, |k| local[k])).collect()
             })
             .collect();
+        let half = (self.prior_half_window_s * rate_hz).round();
+        let poses = if half >= 1.0 { mean_rotations(&poses, half as usize) } else { poses };
         self.solve_frames(cleaned, rate_hz, Some(&poses))
     }
 
@@ -593,9 +609,57 @@ impl KinematicSolver {
     }
 }
 
+/// Each joint's rotation averaged over `half` frames on each side, fewer at the take's ends
+/// (the quaternions turned to the centre frame's hemisphere, summed and normalised: the
+/// chordal mean, close to the rotation mean for rotations this close together).
+fn mean_rotations(poses: &[Vec<Quat>], half: usize) -> Vec<Vec<Quat>> {
+    let n = poses.len();
+    (0..n)
+        .map(|f| {
+            let (lo, hi) = (f.saturating_sub(half), (f + half + 1).min(n));
+            (0..poses[f].len())
+                .map(|j| {
+                    let centre = poses[f][j].coords;
+                    let mut sum = nalgebra::Vector4::zeros();
+                    for pose in &poses[lo..hi] {
+                        let q = pose[j].coords;
+                        sum += if q.dot(&centre) < 0.0 { -q } else { q };
+                    }
+                    Quat::from_quaternion(nalgebra::Quaternion::from(sum))
+                })
+                .collect()
+        })
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The prior's window averages a frame-to-frame flicker away, follows a steady turn, and
+    /// keeps a rotation whose quaternion changes sign from frame to frame (the same rotation).
+    #[test]
+    fn the_prior_window_averages_a_flicker_and_follows_a_turn() {
+        let axis = Vec3::y_axis();
+        let flicker: Vec<Vec<Quat>> = (0..40)
+            .map(|f| {
+                let q = Quat::from_axis_angle(&axis, 0.5 + if f % 2 == 0 { 0.2 } else { -0.2 });
+                // Every third frame the same rotation as its negated quaternion.
+                vec![if f % 3 == 0 { Quat::new_unchecked(-q.into_inner()) } else { q }]
+            })
+            .collect();
+        let mean = mean_rotations(&flicker, 5);
+        for pose in &mean[5..35] {
+            assert!(pose[0].angle_to(&Quat::from_axis_angle(&axis, 0.5)) < 0.03, "{pose:?}");
+        }
+        let turn: Vec<Vec<Quat>> = (0..40).map(|f| vec![Quat::from_axis_angle(&axis, 0.01 * f as f64)]).collect();
+        let mean = mean_rotations(&turn, 5);
+        for (f, pose) in mean.iter().enumerate().take(35).skip(5) {
+            assert!(pose[0].angle_to(&turn[f][0]) < 1e-6, "frame {f}");
+        }
+        // At the ends the window is cut: the first frame is the mean of the first six.
+        assert!(mean[0][0].angle_to(&Quat::from_axis_angle(&axis, 0.025)) < 1e-4);
+    }
 
     /// A layout's skeleton sets the solver's smoothness weight; without one the default holds.
     #[test]

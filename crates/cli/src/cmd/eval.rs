@@ -64,6 +64,11 @@ pub struct Args {
     /// body, `REFINE_PRIOR` on a layout's skeleton).
     #[arg(long, value_name = "WEIGHT", requires = "refine", help_heading = "Input")]
     refine_prior: Option<f64>,
+    /// Half-width (seconds) of the window the network's joint rotations are averaged over
+    /// before they pull in `--refine` (default: `locap_nn::kinematic::PRIOR_HALF_WINDOW_S`; 0:
+    /// each frame's own).
+    #[arg(long, value_name = "SECONDS", requires = "refine", help_heading = "Input")]
+    prior_window: Option<f64>,
     /// Write the results as JSON.
     #[arg(long, value_name = "FILE", help_heading = "Output")]
     json: Option<PathBuf>,
@@ -158,6 +163,10 @@ pub fn run(args: Args) -> Result<ExitCode> {
         if let Some(w) = args.refine_prior {
             anyhow::ensure!(w.is_finite() && w >= 0.0, "--refine-prior {w} is not a weight (finite, at least 0)");
             k.refine_prior = w;
+        }
+        if let Some(s) = args.prior_window {
+            anyhow::ensure!(s.is_finite() && (0.0..=10.0).contains(&s), "--prior-window {s}: 0 to 10 seconds");
+            k.prior_half_window_s = s;
         }
         Some(k)
     } else {
