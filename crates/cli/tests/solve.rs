@@ -5,6 +5,16 @@ mod common;
 use common::{locap, repo, shared_data};
 use std::process::Command;
 
+/// The share of wrist samples within 60 mm of their markers that `locap solve` prints (%).
+fn wrist_share(summary: &str) -> f64 {
+    summary
+        .split("wrists within 60 mm of their markers ")
+        .nth(1)
+        .and_then(|rest| rest.split('%').next())
+        .and_then(|share| share.parse().ok())
+        .unwrap_or_else(|| panic!("no wrist check in {summary}"))
+}
+
 /// A real CMU take solved to BVH: our reader and a third-party Python BVH parser (`bvh` from
 /// PyPI, installed by `.ci/run` into `.ci/pydeps`) read back the take's frame count and rate;
 /// the cleaned markers come out complete.
@@ -23,13 +33,7 @@ fn solve_writes_bvh_with_the_takes_frames_and_rate() {
     // and no joint turning more than 20 degrees between frames.
     assert!(text.contains("network refined by the kinematic solver"), "{text}");
     assert!(text.contains(", 0 frame pairs over 20 deg"), "{text}");
-    let wrists: f64 = text
-        .split("wrists within 60 mm of their markers ")
-        .nth(1)
-        .and_then(|rest| rest.split('%').next())
-        .and_then(|share| share.parse().ok())
-        .unwrap_or_else(|| panic!("no wrist check in {text}"));
-    assert!(wrists >= 99.0, "{text}");
+    assert!(wrist_share(&text) >= 99.0, "{text}");
     let motion = locap_io::bvh::read_bvh_path(&bvh, locap_core::LengthUnit::Centimetre).unwrap();
     assert_eq!(motion.frame_count(), 343);
     assert!((motion.frame_rate_hz() - 120.0).abs() < 1e-6);
@@ -152,32 +156,19 @@ fn eval_prints_table_one() {
     let out = eval().output().unwrap();
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("one reference per take"));
-    // A refine prior that is not a weight is refused, naming the option.
-    let out = eval()
-        .arg("--reference")
-        .arg(data.join("cmu-asfamc/02/02_01.amc"))
-        .args(["--kinematic", "--refine", "--refine-prior=-1"])
-        .output()
-        .unwrap();
-    assert!(!out.status.success());
-    assert!(
-        String::from_utf8_lossy(&out.stderr).contains("--refine-prior -1"),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    // So is a prior window that is not a time.
-    let out = eval()
-        .arg("--reference")
-        .arg(data.join("cmu-asfamc/02/02_01.amc"))
-        .args(["--kinematic", "--refine", "--prior-window=nan"])
-        .output()
-        .unwrap();
-    assert!(!out.status.success());
-    assert!(
-        String::from_utf8_lossy(&out.stderr).contains("--prior-window NaN"),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    // A refine prior that is not a weight, or a prior window that is not a time, is refused,
+    // naming the option.
+    for (given, named) in [("--refine-prior=-1", "--refine-prior -1"), ("--prior-window=nan", "--prior-window NaN")] {
+        let out = eval()
+            .arg("--reference")
+            .arg(data.join("cmu-asfamc/02/02_01.amc"))
+            .args(["--kinematic", "--refine", given])
+            .output()
+            .unwrap();
+        assert!(!out.status.success());
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(stderr.contains(named), "{stderr}");
+    }
 }
 
 /// Issue 17's tracking checks on a real take of a subject the network never saw (CMU 85_12,
@@ -200,13 +191,7 @@ fn the_default_solve_holds_joints_steady_and_wrists_on_their_markers() {
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let text = String::from_utf8(out.stdout).unwrap();
     assert!(text.contains(", 0 frame pairs over 20 deg"), "{text}");
-    let wrists: f64 = text
-        .split("wrists within 60 mm of their markers ")
-        .nth(1)
-        .and_then(|rest| rest.split('%').next())
-        .and_then(|share| share.parse().ok())
-        .unwrap_or_else(|| panic!("no wrist check in {text}"));
-    assert!(wrists >= 99.0, "{text}");
+    assert!(wrist_share(&text) >= 99.0, "{text}");
 }
 
 /// The second body model (`models/solver-cmu41-v2.locapsv`: mirrored motions and wider subject
