@@ -38,6 +38,9 @@
 //! recalibrated rather than left out. A model may name joints that lie at the mean of markers
 //! worn around them ([`JointCentre`], a wrist between its two wrist markers): the calibration
 //! then fits the bone lengths the markers on the bone leave free to put the joint there.
+//! The take is also tracked backwards from its last frame, and the frames before one switch
+//! frame come from that pass where it fits the markers clearly better: a limb the first frame
+//! leaves in a wrong minimum is otherwise tracked there until a motion snaps it out.
 
 use crate::LabelError;
 use argmin::core::{CostFunction, Error, Executor, Gradient, State};
@@ -1241,7 +1244,77 @@ pub fn solve_sequence_with_prior(
         residual_rms_mm.push(frame_rms(&model, &local, root, frame));
         poses.push((local, root));
     }
+    track_back_from_the_end(&model, frames, frame_rate_hz, config, prior, &mut poses, &mut residual_rms_mm);
     Ok(SequenceFit { model, poses, scale, bone_scales, calibration_rms_mm, residual_rms_mm })
+}
+
+/// Least mean improvement (mm^2 of squared frame RMS) over the frames before the switch for
+/// [`track_back_from_the_end`] to take the backward pass there: noise and the way a redundant
+/// chain (the neck) shares a turn do not switch (HDM05: 4 mm^2 per frame), a limb in a wrong
+/// minimum does (S01's right arm: 640).
+const BACKWARD_GAIN_MM2: f64 = 25.0;
+
+/// Largest difference (radians) of a joint's rotation between the two passes at the switch
+/// frame: a wider seam would be a jump in the motion.
+const MAX_SEAM_RAD: f64 = 10.0 * std::f64::consts::PI / 180.0;
+
+/// Share of the best gain a switch frame may give up to meet the forward pass where the two
+/// agree best.
+const SWITCH_SLACK: f64 = 0.05;
+
+/// A limb the first frame leaves in a wrong minimum (a twisted arm that fits its markers
+/// worse, but locally best) is tracked there until a motion snaps it out, which can be half
+/// the take. So the take is also tracked backwards from its last frame, and the frames before
+/// one switch frame are taken from the backward pass where that fits the markers better on
+/// the whole. One switch only, placed where the two passes agree best among the switches
+/// that keep nearly all of the gain: a switch between two solutions would be a jump.
+fn track_back_from_the_end(
+    model: &MarkerModel,
+    frames: &[Vec<Option<Vec3>>],
+    frame_rate_hz: f64,
+    config: &SequenceConfig,
+    prior: Option<&[Vec<Quat>]>,
+    poses: &mut [(Vec<Quat>, Vec3)],
+    residual_rms_mm: &mut [Option<f64>],
+) {
+    let n = frames.len();
+    // From the rest pose, as the forward pass starts.
+    let mut tracker = PoseTracker::new(model.clone(), config.ik, frame_rate_hz);
+    let mut back: Vec<(Vec<Quat>, Vec3)> = Vec::with_capacity(n);
+    let mut back_rms: Vec<Option<f64>> = Vec::with_capacity(n);
+    for f in (0..n).rev() {
+        tracker.set_prior(prior.map(|p| p[f].as_slice()));
+        let (local, root) = tracker.fit_pose(&frames[f], &vec![None; frames[f].len()]);
+        back_rms.push(frame_rms(model, &local, root, &frames[f]));
+        back.push((local, root));
+    }
+    back.reverse();
+    back_rms.reverse();
+    // gains[k]: frames [0, k) backward, [k, n) forward, against all forward: the sum over the
+    // first k frames of the forward pass's squared RMS less the backward pass's.
+    let sq = |r: Option<f64>| r.map_or(0.0, |r| r * r);
+    let mut gains = vec![0.0; n + 1];
+    for k in 1..=n {
+        gains[k] = gains[k - 1] + sq(residual_rms_mm[k - 1]) - sq(back_rms[k - 1]);
+    }
+    let worth = |k: usize| gains[k] > BACKWARD_GAIN_MM2 * k as f64;
+    let Some(best) = (1..=n).filter(|&k| worth(k)).map(|k| gains[k]).max_by(f64::total_cmp) else { return };
+    // Where the backward pose of frame k-1 meets the forward pose of frame k most closely.
+    let seam = |k: usize| -> f64 {
+        if k == n {
+            return 0.0;
+        }
+        back[k].0.iter().zip(&poses[k].0).map(|(a, b)| a.angle_to(b)).fold(0.0, f64::max)
+    };
+    let Some(best_k) = (1..=n)
+        .filter(|&k| worth(k) && gains[k] >= best - SWITCH_SLACK * best)
+        .min_by(|&a, &b| seam(a).total_cmp(&seam(b)))
+        .filter(|&k| seam(k) <= MAX_SEAM_RAD)
+    else {
+        return;
+    };
+    poses[..best_k].clone_from_slice(&back[..best_k]);
+    residual_rms_mm[..best_k].copy_from_slice(&back_rms[..best_k]);
 }
 
 /// Up to `count` frames spread evenly over those that see at least 70% of the markers (or,
