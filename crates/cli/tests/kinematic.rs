@@ -5,7 +5,8 @@
 
 mod common;
 
-use common::{locap, repo, shared_data};
+use common::{locap, repo, shared_data, tracking};
+use std::path::{Path, PathBuf};
 use std::process::Command;
 
 /// The residual `locap solve` prints for a kinematic solve, mm RMS.
@@ -14,23 +15,10 @@ fn residual_mm(stdout: &str) -> f64 {
     stdout[at + "marker residual ".len()..].split_whitespace().next().unwrap().parse().unwrap()
 }
 
-/// The frame pairs with a joint turning over 20 degrees and the wrists' share within 60 mm of
-/// their markers (%), as `locap solve` prints them for a kinematic solve.
-fn tracking(stdout: &str) -> (usize, Option<f64>) {
-    let at = stdout.find(" frame pairs over 20 deg").unwrap_or_else(|| panic!("no jumps in {stdout}"));
-    let over = stdout[..at].rsplit(' ').next().unwrap().parse().unwrap();
-    let wrists = stdout.find("of their markers ").map(|at| {
-        let rest = &stdout[at + "of their markers ".len()..];
-        rest[..rest.find('%').unwrap()].parse().unwrap()
-    });
-    (over, wrists)
-}
-
-#[test]
-fn the_62_marker_take_solves_to_bvh_with_the_opensim_layout() {
-    let Some(data) = shared_data() else { return };
-    let dir = tempfile::tempdir().unwrap();
-    let layout = dir.path().join("rajagopal62.toml");
+/// `labeling/Rajagopal2015_mod.osim` and its marker set made a layout in `dir`, as a user
+/// makes it.
+fn opensim_layout(data: &Path, dir: &Path) -> PathBuf {
+    let layout = dir.join("rajagopal62.toml");
     let out = locap()
         .args(["layout", "--from-opensim"])
         .arg(data.join("labeling/Rajagopal2015_mod.osim"))
@@ -41,6 +29,14 @@ fn the_62_marker_take_solves_to_bvh_with_the_opensim_layout() {
         .unwrap();
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     assert!(String::from_utf8_lossy(&out.stdout).contains("62 markers on 23 bodies"), "{:?}", out);
+    layout
+}
+
+#[test]
+fn the_62_marker_take_solves_to_bvh_with_the_opensim_layout() {
+    let Some(data) = shared_data() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let layout = opensim_layout(&data, dir.path());
     // Two seconds of the take (240 Hz).
     let mut file = locap_io::c3d::read_path(&data.join("labeling/KneeltoProne01.c3d")).unwrap();
     file.cut_frames(0..480).unwrap();
@@ -96,16 +92,7 @@ fn the_62_marker_take_solves_to_bvh_with_the_opensim_layout() {
 fn a_take_starting_in_an_unusual_pose_is_tracked_from_its_first_frame() {
     let Some(data) = shared_data() else { return };
     let dir = tempfile::tempdir().unwrap();
-    let layout = dir.path().join("rajagopal62.toml");
-    let out = locap()
-        .args(["layout", "--from-opensim"])
-        .arg(data.join("labeling/Rajagopal2015_mod.osim"))
-        .arg(data.join("labeling/MarkerSet.xml"))
-        .arg("-o")
-        .arg(&layout)
-        .output()
-        .unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let layout = opensim_layout(&data, dir.path());
     let labeled = dir.path().join("s01.c3d");
     let out = locap()
         .arg("label")

@@ -450,12 +450,6 @@ impl KinematicSolver {
         found * 2 >= self.markers.len() && found >= 3
     }
 
-    /// The rule of `locap solve --method auto`: this solver takes `take` instead of `network`
-    /// where the network's markers are not all in the take and this layout's are.
-    pub fn solves_instead_of(&self, network: &crate::solver::Solver, take: &Take) -> bool {
-        crate::features::marker_order(take, &network.meta.markers).is_err() && self.fits(take)
-    }
-
     /// True when this solver can refine `network`'s answers ([`KinematicSolver::refine`]):
     /// every joint of its skeleton is one of the network's, by name. (A joint the network
     /// lacks would be held at its rest orientation.)

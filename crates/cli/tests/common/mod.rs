@@ -36,3 +36,15 @@ pub fn bvh_against_cmu(bvh: &Path, data: &Path, subject: &str, take: &str) -> lo
     let rotating = vec![true; solved.skeleton.len()];
     locap_eval::solver::compare_motions(&solved, &reference, &rotating).unwrap()
 }
+
+/// The frame pairs with a joint turning over 20 degrees and the wrists' share within 60 mm of
+/// their markers (%), as `locap solve` prints them.
+pub fn tracking(stdout: &str) -> (usize, Option<f64>) {
+    let at = stdout.find(" frame pairs over 20 deg").unwrap_or_else(|| panic!("no jumps in {stdout}"));
+    let over = stdout[..at].rsplit(' ').next().unwrap().parse().unwrap();
+    let wrists = stdout.find("of their markers ").map(|at| {
+        let rest = &stdout[at + "of their markers ".len()..];
+        rest[..rest.find('%').unwrap()].parse().unwrap()
+    });
+    (over, wrists)
+}
