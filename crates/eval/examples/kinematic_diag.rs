@@ -46,6 +46,12 @@ fn config(solver: &mut KinematicSolver) {
     if let Some(v) = env("CENTRE_W") {
         c.joint_centre_weight = v;
     }
+    if let Some(v) = env("CENTRE_PULL") {
+        c.ik.centre = v;
+    }
+    if let Some(v) = env("CENTRE_RADIUS") {
+        c.ik.centre_radius_mm = v;
+    }
     if let Some(v) = env("LOCKED") {
         c.ik.locked = v;
     }

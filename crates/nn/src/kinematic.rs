@@ -77,7 +77,9 @@ pub const CMU_ASF_DOFS: &[CmuBoneDofs] = &[
 
 /// The CMU skeleton's wrists (`lhand`, `rhand`: the joint the hand flexes about) and the wrist
 /// markers around each (thumb and little-finger side of the wrist bar), whose mean is the
-/// wrist centre as gait models define it ([`KinematicSolver::with_joint_centres`]).
+/// wrist centre as gait models define it ([`KinematicSolver::with_joint_centres`]); the joint
+/// is held within [`locap_label::ik::CENTRE_RADIUS_MM`] of it, where CMU's skeleton puts it
+/// 45-75 mm away.
 pub const CMU_WRIST_CENTRES: &[(&str, &[&str])] = &[("lhand", &["LWRA", "LWRB"]), ("rhand", &["RWRA", "RWRB"])];
 
 /// The ranges CMU's own solutions use (degrees, per bone, in [`CMU_ASF_DOFS`]'s dof order): the
@@ -350,8 +352,8 @@ impl KinematicSolver {
     /// each joint with the CMU ASF's degrees of freedom, within the ranges CMU's own solutions
     /// use ([`cmu_asf_dofs`], [`CmuLimits::Solved`]: the ASF's `limits` keep a 135_02 forearm
     /// from reaching its wrist markers; docs/benchmarks.md), and the
-    /// wrists calibrated to lie between their markers ([`CMU_WRIST_CENTRES`]; set
-    /// `config.joint_centre_weight` to 0 for the template's forearms); the
+    /// wrists calibrated and held near the mean of their markers ([`CMU_WRIST_CENTRES`];
+    /// [`KinematicSolver::without_joint_centres`] for the template's forearms); the
     /// joints that skeleton never rotates (no degrees of freedom in the ASF, and the clavicles,
     /// which CMU's solutions never turn) stay still.
     ///
@@ -393,6 +395,14 @@ impl KinematicSolver {
         let mut solver = KinematicSolver::new(&Layout::cmu41(), skeleton, Some(dofs))?;
         solver.refine_prior = BODY_REFINE_PRIOR;
         Ok(solver)
+    }
+
+    /// The same solver with its joint centres left to the markers alone: the template's bone
+    /// lengths scaled, no pull towards the markers' mean, in the calibration or in any frame.
+    pub fn without_joint_centres(mut self) -> KinematicSolver {
+        self.config.joint_centre_weight = 0.0;
+        self.config.ik.centre = 0.0;
+        self
     }
 
     /// The same solver with joints that lie at the mean of markers around them, by name: the

@@ -46,8 +46,8 @@ pub struct Args {
     /// skeleton, calibrated on each take; no training): Table 1's optimization-based column.
     #[arg(long, help_heading = "Input")]
     kinematic: bool,
-    /// The kinematic solver keeps the template's forearm lengths instead of calibrating each
-    /// wrist centre to lie between its two wrist markers.
+    /// The kinematic solver keeps the template's forearm lengths instead of calibrating and
+    /// holding each wrist within 45 mm of the mean of its two wrist markers.
     #[arg(long, requires = "kinematic", help_heading = "Input")]
     no_wrist_centres: bool,
     /// The kinematic solver on this layout and the skeleton it carries (from `locap hands` or
@@ -158,7 +158,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
     let kinematic = if args.kinematic {
         let mut k = crate::cmd::solve::kinematic_solver(args.kinematic_layout.as_deref(), None)?;
         if args.no_wrist_centres {
-            k.config.joint_centre_weight = 0.0;
+            k = k.without_joint_centres();
         }
         if let Some(w) = args.refine_prior {
             anyhow::ensure!(w.is_finite() && w >= 0.0, "--refine-prior {w} is not a weight (finite, at least 0)");

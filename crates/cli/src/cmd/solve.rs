@@ -111,7 +111,7 @@ pub struct Args {
     #[arg(long, value_name = "FILE", requires = "layout", help_heading = "Solver")]
     skeleton: Option<PathBuf>,
     /// The CMU kinematic solver (no --layout) keeps the template's forearm lengths instead of
-    /// calibrating each wrist centre to lie between its two wrist markers.
+    /// calibrating and holding each wrist within 45 mm of the mean of its two wrist markers.
     #[arg(long, conflicts_with = "layout", help_heading = "Solver")]
     no_wrist_centres: bool,
 }
@@ -236,7 +236,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
         Method::Ik | Method::Auto | Method::Refine => {
             let mut k = kinematic_solver(args.layout.as_deref(), args.skeleton.as_deref())?;
             if args.no_wrist_centres {
-                k.config.joint_centre_weight = 0.0;
+                k = k.without_joint_centres();
             }
             Some(k)
         }
