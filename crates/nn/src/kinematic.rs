@@ -17,8 +17,9 @@
 //! turns about the axes of its ASF bone (the Acclaim ASF's `axis`, `dof` and `limits` lines,
 //! see `locap_io::asf_amc`; [`CMU_ASF_DOFS`], the same in every CMU subject): an elbow or knee
 //! about one axis, a hand about two, within the ranges CMU's own solutions use
-//! ([`CMU_SOLVED_RANGES`]). The wrist joint centres are calibrated to lie between
-//! their two wrist markers ([`CMU_WRIST_CENTRES`]), as gait models define the wrist centre.
+//! ([`CMU_SOLVED_RANGES`]). The wrist joints are calibrated and held near the mean of their
+//! two wrist markers ([`CMU_WRIST_CENTRES`]), where gait models put the wrist centre: within a
+//! radius of it, as CMU's skeleton has its hand joint further down the hand.
 //! It is Y-up; a Z-up take sees it
 //! turned into its lab by the convention of [`locap_core::units::y_up_to_z_up`], and the motion
 //! comes back in the skeleton's Y-up frame, as the network solver's does.
