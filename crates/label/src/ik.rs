@@ -391,11 +391,11 @@ const COUPLING: f64 = 8.0;
 const DISTANCE_UNIT_MM: f64 = 10.0;
 
 /// How far (mm) a joint centre may lie from its markers' mean before it is pulled in
-/// ([`IkConfig::centre_radius_mm`]). The CMU template puts its hand joints 45-75 mm from the
-/// wrist markers' mean, as CMU's own solutions do; pulled onto the mean, the forearm no longer
-/// matches that skeleton (JPE 17.4 -> 11.3 mm on the body validation take without the pull).
-/// Within 45 mm the hands still meet a 60 mm check in every frame of six real takes; chosen on
-/// the validation takes (docs/benchmarks.md, "A radius for the wrist centres").
+/// ([`IkConfig::centre_radius_mm`]). The CMU template, like CMU's own solutions, puts its hand
+/// joints further than this from the wrist markers' mean; pulled onto the mean, the forearm no
+/// longer matches that skeleton, and every joint below the elbow is placed worse. Within this
+/// radius the hands still stay within 60 mm of their wrist markers. Chosen on validation takes
+/// (docs/benchmarks.md, "A radius for the wrist centres").
 pub const CENTRE_RADIUS_MM: f64 = 45.0;
 
 /// Weights and limits of the pose fit.
@@ -1618,7 +1618,10 @@ fn calibrate_linear(
             // A joint further than the radius from its markers' mean is pulled in to the
             // radius, along the direction it lies in now; one within it stays where it is.
             let radius = config.ik.centre_radius_mm;
-            let mean = centre.markers.iter().filter_map(|&m| current[m]).map(|p| lab_inv * p).sum::<Vec3>() * share;
+            let Some(placed) = centre.markers.iter().map(|&m| current[m]).collect::<Option<Vec<Vec3>>>() else {
+                continue;
+            };
+            let mean = placed.iter().map(|p| lab_inv * p).sum::<Vec3>() * share;
             let away = pose.positions_mm[centre.joint] - mean;
             let kept = if away.norm() > radius { away * (radius / away.norm()) } else { away };
             for c in 0..3 {
