@@ -26,7 +26,8 @@
 //!    short take may have no window of the gap's length to spare;
 //! 2. every candidate ([`FillMethod::Edm`], [`FillMethod::PcaAligned`], [`FillMethod::Rigid`],
 //!    [`FillMethod::RigidSpline`] for gaps up to [`AutoConfig::rigid_spline_s`],
-//!    [`FillMethod::Spline`], [`FillMethod::Linear`]) fills each trial; each is scored by its
+//!    [`FillMethod::Spline`], [`FillMethod::Linear`], [`FillMethod::Distance`]) fills each
+//!    trial; each is scored by its
 //!    RMSE over the hidden samples of `i` in each trial, averaged over the trials
 //!    ([`TrialScore::MeanOfTrials`]; a neighbour trial's RMSE counts at a quarter,
 //!    [`AutoConfig::neighbour_weight`]). A sample a candidate leaves missing counts with the
@@ -43,7 +44,7 @@
 //!
 //! # Cost
 //! Candidates never refill the whole take. Each trial and the real gap are filled on
-//! *sub-takes*: for EDM, rigid, spline and linear, the gap's frames plus
+//! *sub-takes*: for EDM, rigid, spline, linear and the distance fill, the gap's frames plus
 //! [`AutoConfig::context_s`] (at least the gap's own length) on each side, and only `i` and
 //! its [`AutoConfig::markers`] best neighbours (ranked once over the whole take,
 //! [`crate::neighbours`]); for PCA, up to [`AutoConfig::pca_markers`] markers (all by default),
@@ -103,6 +104,12 @@
 //!   candidate for gaps up to half a second only: on the real occlusion statistics it is the
 //!   best single method up to 60 frames at 120 Hz and worse than the plain rigid fill beyond,
 //!   and as a candidate for every length the trials of long gaps sometimes ranked it first.
+//! - Distance-constrained smoothing ([`FillMethod::Distance`]) is a candidate for interior
+//!   gaps. Alone it is no better than EDM on long gaps, but its errors differ from EDM's and
+//!   the interpolations' (it weighs each neighbour by how steady it is and follows the
+//!   border velocities), so the blends gain; it shares the sub-take's EDM fill with the EDM
+//!   candidate, which it starts from. Anchoring it to the EDM fill made it better alone and
+//!   the choice worse (docs/benchmarks.md).
 //! - The other constants of [`AutoConfig::default`] and [`default_ranking`] were chosen on
 //!   CMU subject 85 (85_12; the neighbour trials on 85_12 and the short 85_02), with
 //!   protocol seeds other than the one reported; another subject (CMU 135_02) and another
@@ -124,13 +131,14 @@ use std::ops::Range;
 pub const CHECKED_NEIGHBOURS: usize = 3;
 
 /// The candidates, in the order ties are broken.
-pub const CANDIDATES: [FillMethod; 6] = [
+pub const CANDIDATES: [FillMethod; 7] = [
     FillMethod::Edm,
     FillMethod::PcaAligned,
     FillMethod::Rigid,
     FillMethod::RigidSpline,
     FillMethod::Spline,
     FillMethod::Linear,
+    FillMethod::Distance,
 ];
 
 /// Markers besides one that fix a rigid body's pose: the partners of a rigid cluster.
@@ -223,6 +231,9 @@ pub struct AutoConfig {
     /// plate): where all three are captured throughout a gap and its borders, the rigid fill
     /// alone fills it, exactly up to the markers' noise, whatever the trials measured (0: never).
     pub rigid_cluster_mm: f64,
+    /// Whether distance-constrained smoothing ([`FillMethod::Distance`]) is a candidate (for
+    /// interior gaps; it keeps EDM's fill at the take's edges).
+    pub distance: bool,
 }
 
 impl AutoConfig {
@@ -254,6 +265,7 @@ impl Default for AutoConfig {
             neighbour_trials: 2,
             neighbour_weight: 0.25,
             rigid_cluster_mm: 1.0,
+            distance: true,
         }
     }
 }
@@ -402,6 +414,8 @@ struct Window {
 struct Windows {
     local: Option<Window>,
     wide: Option<Window>,
+    /// EDM's fill of `local`, shared by the EDM candidate and the distance fill it starts.
+    edm: std::cell::OnceCell<Filled>,
     /// The frames filled, in the take.
     range: Range<usize>,
 }
@@ -424,7 +438,12 @@ impl Context<'_> {
         let interpolates = gap.len as f64 <= self.config.interpolate_s * self.take.frame_rate_hz();
         let rigid_spline = gap.len as f64 <= self.config.rigid_spline_s * self.take.frame_rate_hz();
         let candidates: Vec<FillMethod> = if edge == Edge::Inside && interpolates {
-            CANDIDATES.iter().copied().filter(|c| rigid_spline || *c != FillMethod::RigidSpline).collect()
+            CANDIDATES
+                .iter()
+                .copied()
+                .filter(|c| rigid_spline || *c != FillMethod::RigidSpline)
+                .filter(|c| self.config.distance || *c != FillMethod::Distance)
+                .collect()
         } else {
             CANDIDATES[..3].to_vec()
         };
@@ -754,7 +773,12 @@ impl Context<'_> {
         let mut wide_frames: Vec<usize> = around.clone().filter(|f| !range.contains(f)).step_by(stride).collect();
         wide_frames.extend(range.clone());
         wide_frames.sort_unstable();
-        Windows { local: self.window(local_frames, local, hidden), wide: self.window(wide_frames, wide, hidden), range }
+        Windows {
+            local: self.window(local_frames, local, hidden),
+            wide: self.window(wide_frames, wide, hidden),
+            edm: std::cell::OnceCell::new(),
+            range,
+        }
     }
 
     /// Candidate `method`'s fill of the windows' marker over their frames `range`.
@@ -765,8 +789,9 @@ impl Context<'_> {
         let Some(window) = window else { return vec![None; range.len()] };
         let Ok(first) = window.frames.binary_search(&range.start) else { return vec![None; range.len()] };
         let config = self.config;
+        let edm = || windows.edm.get_or_init(|| edm::fill(&window.take, config.edm_neighbours, config.selection));
         let filled = match method {
-            FillMethod::Edm => edm::fill(&window.take, config.edm_neighbours, config.selection),
+            FillMethod::Edm => edm().clone(),
             FillMethod::Pca | FillMethod::PcaAligned => {
                 let config = if method == FillMethod::PcaAligned {
                     baseline::pca::PcaConfig::aligned()
@@ -781,6 +806,20 @@ impl Context<'_> {
             }
             FillMethod::Spline => baseline::spline::fill(&window.take),
             FillMethod::Linear => baseline::linear::fill(&window.take),
+            FillMethod::Distance => {
+                let distance = crate::distance::DistanceConfig {
+                    edm_neighbours: config.edm_neighbours,
+                    selection: config.selection,
+                    ..crate::distance::DistanceConfig::default()
+                };
+                return crate::distance::fill_marker_from(
+                    &window.take,
+                    edm(),
+                    0,
+                    first..first + range.len(),
+                    &distance,
+                );
+            }
             // Not a candidate: the per-gap choice does not recurse.
             FillMethod::Auto => return vec![None; range.len()],
         };

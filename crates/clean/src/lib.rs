@@ -50,6 +50,7 @@
 
 pub mod auto;
 pub mod baseline;
+pub mod distance;
 pub mod edm;
 pub mod filler;
 pub mod local_frame;
@@ -85,6 +86,10 @@ pub enum FillMethod {
     /// The rigid-body fill with the marker's position relative to its donors splined across
     /// the gap ([`baseline::rigid::Across::Spline`]): locap's, for short gaps.
     RigidSpline,
+    /// Distance-constrained smoothing ([`distance`]): every missing sample of a gap and of
+    /// the neighbours missing with it, as the least-squares trajectory that keeps the steady
+    /// distances and moves smoothly: locap's.
+    Distance,
     /// Per gap, the method (or blend) that filled trial gaps of the same length in the same
     /// take best ([`auto`]).
     Auto,
@@ -93,7 +98,7 @@ pub enum FillMethod {
 impl FillMethod {
     /// The single methods, the paper's first ([`FillMethod::Auto`] chooses among them and is
     /// not listed).
-    pub const ALL: [FillMethod; 7] = [
+    pub const ALL: [FillMethod; 8] = [
         FillMethod::Edm,
         FillMethod::Linear,
         FillMethod::Spline,
@@ -101,6 +106,7 @@ impl FillMethod {
         FillMethod::PcaAligned,
         FillMethod::Rigid,
         FillMethod::RigidSpline,
+        FillMethod::Distance,
     ];
 
     /// Lower-case name, as on the command line.
@@ -113,6 +119,7 @@ impl FillMethod {
             FillMethod::PcaAligned => "pca-aligned",
             FillMethod::Rigid => "rigid",
             FillMethod::RigidSpline => "rigid-spline",
+            FillMethod::Distance => "distance",
             FillMethod::Auto => "auto",
         }
     }
@@ -188,6 +195,14 @@ fn fill_with_method(take: &Take, config: &FillConfig) -> Filled {
         FillMethod::RigidSpline => {
             baseline::rigid::fill_across(take, config.selection, baseline::rigid::Across::Spline)
         }
+        FillMethod::Distance => distance::fill(
+            take,
+            &distance::DistanceConfig {
+                edm_neighbours: config.neighbours,
+                selection: config.selection,
+                ..distance::DistanceConfig::default()
+            },
+        ),
         FillMethod::Auto => auto::fill(take, &auto::AutoConfig::from_fill(config)).filled,
     }
 }

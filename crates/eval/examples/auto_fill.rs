@@ -7,7 +7,7 @@
 //!     [--seed 0] [--per-length 5] [--blend 2] [--trials 3] [--context 2] [--markers 10]
 //!     [--pca-markers 41] [--pca-context 30] [--pca-fit 500] [--interpolate 100] [--least-squares]
 //!     [--neighbour-trials 2] [--neighbour-weight 0.5] [--score pooled|mean|median]
-//!     [--rigid-cluster 1.0]
+//!     [--rigid-cluster 1.0] [--no-distance]
 //! ```
 //!
 //! Most constants of `AutoConfig::default` were chosen on CMU 85_12 with seeds other than 0;
@@ -42,6 +42,9 @@ fn main() {
     set(get("--per-length"), "--per-length", &mut protocol.per_length);
     let mut config = AutoConfig::default();
     set(get("--blend"), "--blend", &mut config.blend);
+    if args.iter().any(|a| a == "--no-distance") {
+        config.distance = false;
+    }
     if args.iter().any(|a| a == "--least-squares") {
         config.weighting = auto::Weighting::LeastSquares;
     }
@@ -70,10 +73,11 @@ fn main() {
         let take = locap_io::c3d::read_path(&path).and_then(|c| c.to_take()).unwrap_or_else(|e| panic!("{e}"));
         takes.push((name.to_string(), take));
     }
-    let singles: Vec<FillConfig> = [FillMethod::Edm, FillMethod::Pca, FillMethod::Rigid, FillMethod::Spline]
-        .into_iter()
-        .map(|method| FillConfig { method, ..FillConfig::default() })
-        .collect();
+    let singles: Vec<FillConfig> =
+        [FillMethod::Edm, FillMethod::Pca, FillMethod::Rigid, FillMethod::Spline, FillMethod::Distance]
+            .into_iter()
+            .map(|method| FillConfig { method, ..FillConfig::default() })
+            .collect();
     let mut candidates = vec![Candidate { name: "auto", filler: &config as &dyn Filler }];
     candidates.extend(singles.iter().map(|c| Candidate { name: c.method.name(), filler: c as &dyn Filler }));
     let report = fill_lengths::run_lengths(&takes, &candidates, &protocol);

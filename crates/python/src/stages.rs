@@ -35,12 +35,13 @@ fn fill_method(name: &str) -> PyResult<(FillMethod, bool)> {
         "pca-aligned" => (FillMethod::PcaAligned, false),
         "rigid" => (FillMethod::Rigid, false),
         "rigid-spline" => (FillMethod::RigidSpline, false),
+        "distance" => (FillMethod::Distance, false),
         "auto" => (FillMethod::Auto, false),
         // The refiner starts from EDM's fill.
         "neural" => (FillMethod::Edm, true),
         other => {
             return Err(usage(format!(
-                "method {other:?}: one of edm, linear, spline, pca, pca-aligned, rigid, rigid-spline, auto, neural"
+                "method {other:?}: one of edm, linear, spline, pca, pca-aligned, rigid, rigid-spline, distance, auto, neural"
             )));
         }
     })

@@ -78,6 +78,9 @@ pub enum Method {
     /// The rigid-body fill with the marker's position relative to its neighbours splined
     /// across the gap (locap's, for short gaps).
     RigidSpline,
+    /// Distance-constrained smoothing: the steady distances to the neighbours held across
+    /// the gap, markers missing together solved together (locap's).
+    Distance,
     /// Per gap, the method (or blend) that filled trial gaps of the same length best in this
     /// take; recorded per gap in LOCAP:FILLS.
     Auto,
@@ -97,6 +100,7 @@ impl From<Method> for FillMethod {
             Method::PcaAligned => FillMethod::PcaAligned,
             Method::Rigid => FillMethod::Rigid,
             Method::RigidSpline => FillMethod::RigidSpline,
+            Method::Distance => FillMethod::Distance,
             Method::Auto => FillMethod::Auto,
         }
     }
