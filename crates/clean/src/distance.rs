@@ -122,10 +122,9 @@ pub fn fill_marker_from(
     config: &DistanceConfig,
 ) -> Vec<Option<Vec3>> {
     let start = starting_fill(edm);
-    let ranked = neighbours::rank_scored(take, config.selection);
     let frames = take.frame_count();
     let mut out: Vec<Option<Vec3>> = range.clone().map(|f| start.take.position_mm(f, marker)).collect();
-    let near = members(&ranked[marker], marker, config);
+    let near = members(&neighbours::rank_scored_of(take, marker, config.selection), marker, config);
     for g in gaps_of((0..frames).map(|f| take.is_valid(f, marker))) {
         if g.start == 0 || g.end() == frames || g.end() <= range.start || g.start >= range.end {
             continue;
@@ -153,12 +152,36 @@ fn members(ranked: &[(usize, f64)], marker: usize, config: &DistanceConfig) -> V
     list
 }
 
-/// One term of the least-squares problem.
+/// One term of the least-squares problem, its samples resolved once (the solve evaluates
+/// every term a few dozen times).
 enum Term {
-    /// `(|p_a(t) - p_b(t)| - target) * weight`.
-    Distance { frame: usize, a: usize, b: usize, target: f64, weight: f64 },
-    /// `(p_a(t) - target) * weight`, three residuals: the temporal prediction.
-    Temporal { frame: usize, a: usize, target: Vec3, weight: f64 },
+    /// `(|p_a - p_b| - target) * weight` at one frame.
+    Distance { a: Point, b: Point, target: f64, weight: f64 },
+    /// `(x[unknown] - target) * weight`, three residuals: the temporal prediction.
+    Temporal { unknown: usize, target: Vec3, weight: f64 },
+}
+
+/// A sample in a term: one of the unknowns, or a position the solve does not move.
+#[derive(Clone, Copy)]
+enum Point {
+    Unknown(usize),
+    Known(Vec3),
+}
+
+impl Point {
+    fn at(self, x: &[Vec3]) -> Vec3 {
+        match self {
+            Point::Unknown(i) => x[i],
+            Point::Known(p) => p,
+        }
+    }
+
+    fn unknown(self) -> Option<usize> {
+        match self {
+            Point::Unknown(i) => Some(i),
+            Point::Known(_) => None,
+        }
+    }
 }
 
 /// The refined samples of `marker` over `gap`, `(frame, position)`: the joint solution over
@@ -212,6 +235,10 @@ fn refine_gap(
         let i = index[slot(t, k_of(a))];
         (i != usize::MAX).then_some(i)
     };
+    let point = |t: usize, a: usize| match var(t, a) {
+        Some(i) => Point::Unknown(i),
+        None => Point::Known(start.position_mm(t, a).unwrap_or_else(Vec3::zeros)),
+    };
     let floor2 = config.floor_mm * config.floor_mm;
     let mut terms: Vec<Term> = Vec::new();
     for (ka, &a) in near.iter().enumerate() {
@@ -226,10 +253,10 @@ fn refine_gap(
             let Some(spread2) = hermite_spread2(take, a, own.len, around.clone()) else { continue };
             let weight = 1.0 / (spread2 + floor2).sqrt();
             for t in own.start.max(s)..own.end().min(e) {
-                if var(t, a).is_some()
+                if let Some(unknown) = var(t, a)
                     && let Some(target) = hermite(take, a, own, t)
                 {
-                    terms.push(Term::Temporal { frame: t, a, target, weight });
+                    terms.push(Term::Temporal { unknown, target, weight });
                 }
             }
         }
@@ -246,7 +273,8 @@ fn refine_gap(
                 let involved = var(t, a).is_some() || var(t, b).is_some();
                 if involved && start.is_valid(t, a) && start.is_valid(t, b) {
                     let w = (t + 1 - s) as f64 / (len + 1) as f64;
-                    terms.push(Term::Distance { frame: t, a, b, target: d0 + (d1 - d0) * w, weight });
+                    let (a, b) = (point(t, a), point(t, b));
+                    terms.push(Term::Distance { a, b, target: d0 + (d1 - d0) * w, weight });
                 }
             }
         }
@@ -254,31 +282,19 @@ fn refine_gap(
     // Bandwidth (in samples) of the normal matrix.
     let mut band = 0usize;
     for term in &terms {
-        let vars: Vec<usize> = match term {
-            Term::Distance { frame, a, b, .. } => [var(*frame, *a), var(*frame, *b)].into_iter().flatten().collect(),
-            Term::Temporal { frame, a, .. } => var(*frame, *a).into_iter().collect(),
-        };
-        if let (Some(lo), Some(hi)) = (vars.iter().min(), vars.iter().max()) {
-            band = band.max(hi - lo);
+        if let Term::Distance { a: Point::Unknown(i), b: Point::Unknown(j), .. } = term {
+            band = band.max(i.abs_diff(*j));
         }
     }
-    let position = |x: &[Vec3], f: usize, a: usize| -> Vec3 {
-        match var(f, a) {
-            Some(i) => x[i],
-            None => start.position_mm(f, a).unwrap_or_else(Vec3::zeros),
-        }
-    };
     let cost = |x: &[Vec3]| -> f64 {
         terms
             .iter()
             .map(|term| match term {
-                Term::Distance { frame, a, b, target, weight } => {
-                    let r = ((position(x, *frame, *a) - position(x, *frame, *b)).norm() - target) * weight;
+                Term::Distance { a, b, target, weight } => {
+                    let r = ((a.at(x) - b.at(x)).norm() - target) * weight;
                     r * r
                 }
-                Term::Temporal { frame, a, target, weight } => {
-                    ((position(x, *frame, *a) - target) * *weight).norm_squared()
-                }
+                Term::Temporal { unknown, target, weight } => ((x[*unknown] - target) * *weight).norm_squared(),
             })
             .sum()
     };
@@ -291,20 +307,18 @@ fn refine_gap(
         for term in &terms {
             // Each term's residuals as rows `(value, [(sample, 3-vector of partials)])`.
             match term {
-                Term::Distance { frame, a, b, target, weight } => {
-                    let d = position(&x, *frame, *a) - position(&x, *frame, *b);
+                Term::Distance { a, b, target, weight } => {
+                    let d = a.at(&x) - b.at(&x);
                     let norm = d.norm().max(1e-9);
                     let u = d / norm * *weight;
                     let r = (norm - target) * weight;
-                    let parts: Vec<(usize, Vec3)> = [(var(*frame, *a), u), (var(*frame, *b), -u)]
-                        .into_iter()
-                        .filter_map(|(v, g)| Some((v?, g)))
-                        .collect();
-                    for (p, gp) in &parts {
+                    let parts = [(a.unknown(), u), (b.unknown(), -u)];
+                    let parts = parts.iter().filter_map(|(v, g)| Some((v.as_ref()?, g)));
+                    for (p, gp) in parts.clone() {
                         for c in 0..3 {
                             gradient[3 * p + c] += gp[c] * r;
                         }
-                        for (q, gq) in &parts {
+                        for (q, gq) in parts.clone() {
                             for c in 0..3 {
                                 for c2 in 0..3 {
                                     normal.add(3 * p + c, 3 * q + c2, gp[c] * gq[c2]);
@@ -313,13 +327,11 @@ fn refine_gap(
                         }
                     }
                 }
-                Term::Temporal { frame, a, target, weight } => {
-                    let r = (position(&x, *frame, *a) - target) * *weight;
-                    if let Some(p) = var(*frame, *a) {
-                        for c in 0..3 {
-                            gradient[3 * p + c] += weight * r[c];
-                            normal.add(3 * p + c, 3 * p + c, weight * weight);
-                        }
+                Term::Temporal { unknown: p, target, weight } => {
+                    let r = (x[*p] - target) * *weight;
+                    for c in 0..3 {
+                        gradient[3 * p + c] += weight * r[c];
+                        normal.add(3 * p + c, 3 * p + c, weight * weight);
                     }
                 }
             }

@@ -37,11 +37,36 @@ pub fn rank(take: &Take, selection: Selection) -> Vec<Vec<usize>> {
 /// pairs seen together too rarely), whatever the ranking.
 pub fn rank_scored(take: &Take, selection: Selection) -> Vec<Vec<(usize, f64)>> {
     let m = take.marker_count();
+    let stats = distance_statistics(take, None);
+    (0..m).map(|i| ordered(i, m, selection, |j| stats[i.min(j) * m + i.max(j)])).collect()
+}
+
+/// [`rank_scored`]`(take, selection)[marker]`, computed for that marker alone (`O(T M)`): what
+/// a fill that works on one marker's neighbourhood needs.
+pub fn rank_scored_of(take: &Take, marker: usize, selection: Selection) -> Vec<(usize, f64)> {
+    let m = take.marker_count();
+    if marker >= m {
+        return Vec::new();
+    }
+    let stats = distance_statistics(take, Some(marker));
+    ordered(marker, m, selection, |j| stats[marker.min(j) * m + marker.max(j)])
+}
+
+/// Running statistics of one marker pair's distance: frames seen together, mean, and the sum
+/// of squared deviations (Welford).
+#[derive(Debug, Clone, Copy, Default)]
+struct PairStatistics {
+    count: u32,
+    mean: f64,
+    m2: f64,
+}
+
+/// Distance statistics of every marker pair (of the pairs with `only` where given), stored at
+/// `min(i, j) * M + max(i, j)`.
+fn distance_statistics(take: &Take, only: Option<usize>) -> Vec<PairStatistics> {
+    let m = take.marker_count();
     let t = take.frame_count();
-    // Welford running mean and variance per pair (i < j).
-    let mut count = vec![0u32; m * m];
-    let mut mean = vec![0.0f64; m * m];
-    let mut m2 = vec![0.0f64; m * m];
+    let mut stats = vec![PairStatistics::default(); m * m];
     let mut frame = Vec::with_capacity(m);
     // Distance statistics settle long before every frame is seen: past MAX_FRAMES, evenly
     // spaced frames are used (a 10-minute take at 120 Hz: every 6th), which keeps ranking
@@ -50,39 +75,45 @@ pub fn rank_scored(take: &Take, selection: Selection) -> Vec<Vec<(usize, f64)>> 
     for f in (0..t).step_by(stride) {
         frame.clear();
         frame.extend((0..m).map(|k| take.position_mm(f, k)));
-        for i in 0..m {
+        let firsts = only.map_or(0..m, |i| i..i + 1);
+        for i in firsts {
             let Some(pi) = frame[i] else { continue };
-            for (j, pj) in frame.iter().enumerate().skip(i + 1) {
+            // Every pair once: the markers after `i` when every pair is wanted, else all but `i`.
+            for (j, pj) in frame.iter().enumerate().skip(if only.is_none() { i + 1 } else { 0 }) {
                 let Some(pj) = *pj else { continue };
+                if j == i {
+                    continue;
+                }
                 let d = (pi - pj).norm();
-                let k = i * m + j;
-                count[k] += 1;
-                let delta = d - mean[k];
-                mean[k] += delta / count[k] as f64;
-                m2[k] += delta * (d - mean[k]);
+                let s = &mut stats[i.min(j) * m + i.max(j)];
+                s.count += 1;
+                let delta = d - s.mean;
+                s.mean += delta / s.count as f64;
+                s.m2 += delta * (d - s.mean);
             }
         }
     }
-    (0..m)
-        .map(|i| {
-            let mut others: Vec<(bool, f64, usize, f64)> = (0..m)
-                .filter(|j| *j != i)
-                .map(|j| {
-                    let k = i.min(j) * m + i.max(j);
-                    let reliable = count[k] >= MIN_SHARED_FRAMES;
-                    let variance = if reliable { m2[k] / count[k] as f64 } else { f64::INFINITY };
-                    let score = match selection {
-                        Selection::Variance => variance,
-                        Selection::MeanDistance => mean[k],
-                    };
-                    // `false` sorts first: reliable pairs before unreliable ones.
-                    (!reliable, if reliable { score } else { 0.0 }, j, variance)
-                })
-                .collect();
-            others.sort_by(|a, b| a.0.cmp(&b.0).then(a.1.total_cmp(&b.1)).then(a.2.cmp(&b.2)));
-            others.into_iter().map(|(_, _, j, variance)| (j, variance)).collect()
+    stats
+}
+
+/// Every marker but `i` of `m`, best neighbour first by `selection`, with its variance.
+fn ordered(i: usize, m: usize, selection: Selection, pair: impl Fn(usize) -> PairStatistics) -> Vec<(usize, f64)> {
+    let mut others: Vec<(bool, f64, usize, f64)> = (0..m)
+        .filter(|j| *j != i)
+        .map(|j| {
+            let s = pair(j);
+            let reliable = s.count >= MIN_SHARED_FRAMES;
+            let variance = if reliable { s.m2 / s.count as f64 } else { f64::INFINITY };
+            let score = match selection {
+                Selection::Variance => variance,
+                Selection::MeanDistance => s.mean,
+            };
+            // `false` sorts first: reliable pairs before unreliable ones.
+            (!reliable, if reliable { score } else { 0.0 }, j, variance)
         })
-        .collect()
+        .collect();
+    others.sort_by(|a, b| a.0.cmp(&b.0).then(a.1.total_cmp(&b.1)).then(a.2.cmp(&b.2)));
+    others.into_iter().map(|(_, _, j, variance)| (j, variance)).collect()
 }
 
 /// Marker pairs joined by an edge when drawing a take: each marker with its `per_marker`
@@ -133,6 +164,20 @@ mod tests {
         let ranked = rank(&take(), Selection::Variance);
         assert_eq!(&ranked[0][..2], &[1, 2]);
         assert_eq!(ranked[0].len(), 4);
+    }
+
+    #[test]
+    fn one_marker_ranks_as_in_the_whole_ranking() {
+        // With a sample missing so that pairs differ in their counts.
+        let mut holed = take();
+        holed.set_position_mm(7, 3, None).unwrap();
+        for selection in [Selection::Variance, Selection::MeanDistance] {
+            let all = rank_scored(&holed, selection);
+            for (i, row) in all.iter().enumerate() {
+                assert_eq!(&rank_scored_of(&holed, i, selection), row, "marker {i}");
+            }
+        }
+        assert!(rank_scored_of(&holed, 5, Selection::Variance).is_empty());
     }
 
     #[test]
