@@ -26,8 +26,8 @@
 //!    short take may have no window of the gap's length to spare;
 //! 2. every candidate ([`FillMethod::Edm`], [`FillMethod::PcaAligned`], [`FillMethod::Rigid`],
 //!    [`FillMethod::RigidSpline`] for gaps up to [`AutoConfig::rigid_spline_s`],
-//!    [`FillMethod::Spline`], [`FillMethod::Linear`], [`FillMethod::Distance`]) fills each
-//!    trial; each is scored by its
+//!    [`FillMethod::Spline`], [`FillMethod::Linear`], [`FillMethod::Distance`] for gaps of at
+//!    least [`AutoConfig::distance_min_s`]) fills each trial; each is scored by its
 //!    RMSE over the hidden samples of `i` in each trial, averaged over the trials
 //!    ([`TrialScore::MeanOfTrials`]; a neighbour trial's RMSE counts at a quarter,
 //!    [`AutoConfig::neighbour_weight`]). A sample a candidate leaves missing counts with the
@@ -105,7 +105,8 @@
 //!   best single method up to 60 frames at 120 Hz and worse than the plain rigid fill beyond,
 //!   and as a candidate for every length the trials of long gaps sometimes ranked it first.
 //! - Distance-constrained smoothing ([`FillMethod::Distance`]) is a candidate for interior
-//!   gaps. Alone it is no better than EDM on long gaps, but its errors differ from EDM's and
+//!   gaps of at least [`AutoConfig::distance_min_s`] (0.1 s: on shorter gaps it made auto
+//!   worse, on the tuning takes and another lab's take alike). Alone it is no better than EDM on long gaps, but its errors differ from EDM's and
 //!   the interpolations' (it weighs each neighbour by how steady it is and follows the
 //!   border velocities), so the blends gain; it shares the sub-take's EDM fill with the EDM
 //!   candidate, which it starts from. Anchoring it to the EDM fill made it better alone and
@@ -234,6 +235,10 @@ pub struct AutoConfig {
     /// Whether distance-constrained smoothing ([`FillMethod::Distance`]) is a candidate (for
     /// interior gaps; it keeps EDM's fill at the take's edges).
     pub distance: bool,
+    /// Shortest gap (seconds) distance-constrained smoothing is a candidate for. Below it the
+    /// interpolations and the rigid fill with a spline follow the border motion to within a
+    /// millimetre, and one more candidate only adds noise to the choice.
+    pub distance_min_s: f64,
 }
 
 impl AutoConfig {
@@ -266,6 +271,7 @@ impl Default for AutoConfig {
             neighbour_weight: 0.25,
             rigid_cluster_mm: 1.0,
             distance: true,
+            distance_min_s: 0.1,
         }
     }
 }
@@ -437,12 +443,15 @@ impl Context<'_> {
         let wide = self.pca_markers(marker);
         let interpolates = gap.len as f64 <= self.config.interpolate_s * self.take.frame_rate_hz();
         let rigid_spline = gap.len as f64 <= self.config.rigid_spline_s * self.take.frame_rate_hz();
+        // Rounded: 0.1 s at 120 Hz is 12 frames, not 12.000000000000002.
+        let distance = self.config.distance
+            && gap.len >= (self.config.distance_min_s * self.take.frame_rate_hz()).round() as usize;
         let candidates: Vec<FillMethod> = if edge == Edge::Inside && interpolates {
             CANDIDATES
                 .iter()
                 .copied()
                 .filter(|c| rigid_spline || *c != FillMethod::RigidSpline)
-                .filter(|c| self.config.distance || *c != FillMethod::Distance)
+                .filter(|c| distance || *c != FillMethod::Distance)
                 .collect()
         } else {
             CANDIDATES[..3].to_vec()
@@ -975,6 +984,22 @@ mod tests {
         for f in frames {
             take.set_position_mm(f, marker, None).unwrap();
         }
+    }
+
+    /// Distance-constrained smoothing is tried on gaps of a tenth of a second and longer only
+    /// (12 frames at 120 Hz, whatever the rounding of 0.1 x 120).
+    #[test]
+    fn distance_smoothing_is_tried_from_a_tenth_of_a_second() {
+        let mut holed = cluster(900, |i| format!("M{i}"));
+        hide(&mut holed, 0, 300..311);
+        hide(&mut holed, 0, 600..612);
+        let out = fill(&holed, &AutoConfig::default());
+        let tried = |frames: Range<usize>| {
+            let choice = out.choices.iter().find(|c| c.frames == frames).expect("the gap is recorded");
+            choice.trial_rmse_mm.iter().any(|(m, _)| *m == FillMethod::Distance)
+        };
+        assert!(!tried(300..311));
+        assert!(tried(600..612));
     }
 
     /// On a rigid cluster EDM and rigid are exact and win every trial; their blend is exact
