@@ -106,11 +106,12 @@
 //!   and as a candidate for every length the trials of long gaps sometimes ranked it first.
 //! - Distance-constrained smoothing ([`FillMethod::Distance`]) is a candidate for interior
 //!   gaps of at least [`AutoConfig::distance_min_s`] (0.1 s: on shorter gaps it made auto
-//!   worse, on the tuning takes and another lab's take alike). Alone it is no better than EDM on long gaps, but its errors differ from EDM's and
-//!   the interpolations' (it weighs each neighbour by how steady it is and follows the
-//!   border velocities), so the blends gain; it shares the sub-take's EDM fill with the EDM
-//!   candidate, which it starts from. Anchoring it to the EDM fill made it better alone and
-//!   the choice worse (docs/benchmarks.md).
+//!   worse, on the tuning takes and another lab's take alike). Alone it beats EDM on
+//!   realistic gaps but not where a whole segment is missing, and its errors differ from
+//!   EDM's and the interpolations' (it weighs each neighbour by how steady it is and follows
+//!   the border velocities), so the blends gain; it shares the sub-take's EDM fill with the
+//!   EDM candidate, which it starts from. Anchoring it to the EDM fill made it better alone
+//!   and the choice worse (docs/benchmarks.md).
 //! - The other constants of [`AutoConfig::default`] and [`default_ranking`] were chosen on
 //!   CMU subject 85 (85_12; the neighbour trials on 85_12 and the short 85_02), with
 //!   protocol seeds other than the one reported; another subject (CMU 135_02) and another

@@ -32,10 +32,11 @@
 //! solution on the right side. Gaps touching the take's start or end keep the EDM fill: with
 //! one border the distances have nothing to be interpolated towards.
 //!
-//! Alone it is no better than EDM on long gaps (its errors are those of the interpolated
-//! distances); its use is as a candidate of the per-gap choice ([`crate::auto`]), whose
-//! blends gain from a fill whose errors differ from EDM's and the interpolations'
-//! (docs/benchmarks.md, "Distance-constrained smoothing").
+//! Alone it beats EDM on realistic gaps, but not where a whole segment is missing: with a
+//! forearm gone, its distances to the markers that remain change together with the elbow,
+//! and the interpolated targets are wrong together. Its use is as a candidate of the per-gap
+//! choice ([`crate::auto`]), whose blends gain from a fill whose errors differ from EDM's and
+//! the interpolations' (docs/benchmarks.md, "Distance-constrained smoothing").
 
 use crate::neighbours::{self, Selection};
 use crate::{Filled, baseline, edm};
