@@ -271,11 +271,11 @@ fn refine_gap(
             let Some(spread2) = pair_spread2(take, a, b, len, around.clone()) else { continue };
             let weight = 1.0 / (spread2 + floor2).sqrt();
             for t in s..e {
-                let involved = var(t, a).is_some() || var(t, b).is_some();
+                let (pa, pb) = (point(t, a), point(t, b));
+                let involved = pa.unknown().is_some() || pb.unknown().is_some();
                 if involved && start.is_valid(t, a) && start.is_valid(t, b) {
                     let w = (t + 1 - s) as f64 / (len + 1) as f64;
-                    let (a, b) = (point(t, a), point(t, b));
-                    terms.push(Term::Distance { a, b, target: d0 + (d1 - d0) * w, weight });
+                    terms.push(Term::Distance { a: pa, b: pb, target: d0 + (d1 - d0) * w, weight });
                 }
             }
         }
@@ -306,7 +306,8 @@ fn refine_gap(
         let mut normal = Banded::zeros(n, 3 * band + 2);
         let mut gradient = vec![0.0; n];
         for term in &terms {
-            // Each term's residuals as rows `(value, [(sample, 3-vector of partials)])`.
+            // Each term adds `J^T r` to the gradient and `J^T J` to the normal matrix, over
+            // the unknowns it touches.
             match term {
                 Term::Distance { a, b, target, weight } => {
                     let d = a.at(&x) - b.at(&x);
