@@ -9,9 +9,9 @@
 //!
 //! # The method
 //! For every gap of marker `i` over frames `[s, e)`:
-//! 1. *trial gaps*: up to [`AutoConfig::trials`] windows of the same length where `i` *is*
-//!    captured, nearest in time to the real gap first (on both sides, seeded jitter so they
-//!    do not all fall on one motion phase), within [`AutoConfig::search_s`]. Each trial hides
+//! 1. *trial gaps*: [`AutoConfig::trials`] windows (more for short gaps) of the same length
+//!    where `i` *is* captured, nearest in time to the real gap first (on both sides, seeded
+//!    jitter so they do not all fall on one motion phase), within [`AutoConfig::search_s`]. Each trial hides
 //!    `i` over its window and also every marker that is missing at the corresponding frame of
 //!    the real gap, so a gap with simultaneous neighbours is tried with the same neighbours
 //!    missing. A window qualifies only where `i` and its borders are captured and each of
@@ -79,6 +79,11 @@
 //!   [`Weighting::LeastSquares`], kept as an option), no better.
 //! - Trial windows nearest in time first: the motion near a gap resembles the motion in it
 //!   more than motion elsewhere in the take. Three trials: more cost more and changed little.
+//!   A short gap gets more, enough to cover half a second together
+//!   ([`AutoConfig::trial_time_s`], at most [`MOST_TRIALS`]): a trial of a few frames
+//!   scores the candidates on a few samples, and the interpolations and the rigid fills are
+//!   within a millimetre of each other there, so three such trials choose by noise. The
+//!   windows are short, so the cost is small.
 //! - Two neighbour trials: they cost as much as two more windows, and on the short take of
 //!   the tuning set they changed the choice where more windows could not; four changed little.
 //!   Their RMSEs count at a quarter ([`AutoConfig::neighbour_weight`]): they see a poorer
@@ -150,6 +155,9 @@ const CLUSTER_PARTNERS: usize = 3;
 /// weight on the strength of a few samples.
 const RMSE_FLOOR_MM: f64 = 0.5;
 
+/// Most trial gaps elsewhere in time for one real gap ([`AutoConfig::trial_time_s`]).
+pub const MOST_TRIALS: usize = 12;
+
 /// How the blended candidates are weighted.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
@@ -177,8 +185,11 @@ pub enum TrialScore {
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(default)]
 pub struct AutoConfig {
-    /// Most trial gaps per real gap.
+    /// Trial gaps per real gap (the least; short gaps get more, [`AutoConfig::trial_time_s`]).
     pub trials: usize,
+    /// Least time (seconds) the trial gaps elsewhere in time cover together: a short gap gets
+    /// more trials than [`AutoConfig::trials`], up to [`MOST_TRIALS`] (0: always `trials`).
+    pub trial_time_s: f64,
     /// How many of the best candidates are blended (1: the best alone).
     pub blend: usize,
     /// How they are weighted.
@@ -248,12 +259,22 @@ impl AutoConfig {
     pub fn from_fill(fill: &crate::FillConfig) -> AutoConfig {
         AutoConfig { edm_neighbours: fill.neighbours, selection: fill.selection, ..AutoConfig::default() }
     }
+
+    /// Trial gaps elsewhere in time wanted for a gap of `gap_frames` at `rate_hz`: enough to
+    /// cover [`AutoConfig::trial_time_s`] together, at least [`AutoConfig::trials`] and at
+    /// most [`MOST_TRIALS`] (or `trials`, if more).
+    pub fn trials_for(&self, gap_frames: usize, rate_hz: f64) -> usize {
+        let covering = (self.trial_time_s * rate_hz / gap_frames.max(1) as f64).ceil();
+        let covering = if covering.is_finite() && covering > 0.0 { covering as usize } else { 0 };
+        covering.clamp(self.trials, MOST_TRIALS.max(self.trials))
+    }
 }
 
 impl Default for AutoConfig {
     fn default() -> AutoConfig {
         AutoConfig {
             trials: 3,
+            trial_time_s: 0.5,
             blend: 2,
             weighting: Weighting::InverseSquare,
             score: TrialScore::MeanOfTrials,
@@ -710,6 +731,7 @@ impl Context<'_> {
         if self.config.trials == 0 || len + 2 > frames {
             return Vec::new();
         }
+        let wanted = self.config.trials_for(len, take.frame_rate_hz());
         let span = |s: usize| captured_span(edge, s, len);
         let checked: Vec<usize> = self.ranked[marker]
             .iter()
@@ -740,7 +762,7 @@ impl Context<'_> {
         offsets.sort_by_key(|d| (d.unsigned_abs(), *d < 0));
         let mut starts: Vec<usize> = Vec::new();
         for d in offsets {
-            if starts.len() >= self.config.trials {
+            if starts.len() >= wanted {
                 break;
             }
             let s = gap.start as isize + d;
@@ -989,6 +1011,20 @@ mod tests {
 
     /// Distance-constrained smoothing is tried on gaps of a tenth of a second and longer only
     /// (12 frames at 120 Hz, whatever the rounding of 0.1 x 120).
+    /// Short gaps get more trial windows, to cover half a second together; long gaps keep
+    /// three, and no gap gets more than [`MOST_TRIALS`].
+    #[test]
+    fn short_gaps_get_more_trials() {
+        let config = AutoConfig::default();
+        assert_eq!(config.trials_for(12, 120.0), 5);
+        assert_eq!(config.trials_for(60, 120.0), 3);
+        assert_eq!(config.trials_for(600, 120.0), 3);
+        assert_eq!(config.trials_for(1, 120.0), MOST_TRIALS);
+        assert_eq!(config.trials_for(0, 120.0), MOST_TRIALS);
+        assert_eq!(AutoConfig { trial_time_s: 0.0, ..config }.trials_for(1, 120.0), 3);
+        assert_eq!(AutoConfig { trials: 20, ..config }.trials_for(1, 120.0), 20);
+    }
+
     #[test]
     fn distance_smoothing_is_tried_from_a_tenth_of_a_second() {
         let mut holed = cluster(900, |i| format!("M{i}"));
@@ -1021,7 +1057,9 @@ mod tests {
         let recorded: Vec<(usize, Range<usize>)> = out.choices.iter().map(|c| (c.marker, c.frames.clone())).collect();
         assert_eq!(recorded, vec![(0, 300..360), (0, 600..612), (2, 450..500)]);
         for c in &out.choices {
-            assert_eq!(c.trials, AutoConfig::default().trials + AutoConfig::default().neighbour_trials);
+            let config = AutoConfig::default();
+            let windows = config.trials_for(c.frames.len(), truth.frame_rate_hz());
+            assert_eq!(c.trials, windows + config.neighbour_trials, "{:?}", c.frames);
             assert_eq!(c.filled, c.frames.len());
             let methods: Vec<FillMethod> = c.weights.iter().map(|(m, _)| *m).collect();
             assert!(methods.iter().all(|m| matches!(m, FillMethod::Edm | FillMethod::Rigid)), "{}", c.method());

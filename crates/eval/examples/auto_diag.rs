@@ -33,6 +33,9 @@ fn main() -> anyhow::Result<()> {
     );
     let multi = args.iter().any(|a| a == "--multi");
     let mut auto_config = AutoConfig::default();
+    if let Some(t) = option("--trial-time") {
+        auto_config.trial_time_s = t.parse()?;
+    }
     if let Some(n) = option("--neighbour-trials") {
         auto_config.neighbour_trials = n.parse()?;
     }

@@ -49,6 +49,7 @@ fn main() {
         config.weighting = auto::Weighting::LeastSquares;
     }
     set(get("--trials"), "--trials", &mut config.trials);
+    set(get("--trial-time"), "--trial-time", &mut config.trial_time_s);
     set(get("--neighbour-trials"), "--neighbour-trials", &mut config.neighbour_trials);
     set(get("--neighbour-weight"), "--neighbour-weight", &mut config.neighbour_weight);
     set(get("--context"), "--context", &mut config.context_s);

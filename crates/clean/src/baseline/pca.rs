@@ -64,7 +64,9 @@
 //! generalised Procrustes from the first complete frame), with the PCA's own distance
 //! weights, so the frame turns with the markers nearest to the missing one, like a rigid-body
 //! fill's; the PCA then models what the neighbourhood's motion does not explain, and the
-//! reconstruction is turned back. Everything else is the paper's R2 as above.
+//! reconstruction is turned back. Everything else is the paper's R2 as above. Where the
+//! weights leave the predictors on a line ([`MIN_ALIGNED_SPREAD_MM`]) a rotation is not
+//! defined and the paper's frame is used.
 //! [`crate::FillMethod::PcaAligned`] runs it; the per-gap choice ([`crate::auto`]) uses it as
 //! its PCA candidate.
 //!
@@ -94,6 +96,14 @@ pub const MIN_COMPLETE_FRAMES: usize = 10;
 /// centroid (the mean trajectory when no marker is gap-free) cannot fix an orientation, so
 /// the nearest other captured markers are added, distal or not.
 pub const MIN_PREDICTORS: usize = 3;
+/// Least spread (mm, the square root of the second eigenvalue of the predictors' weighted
+/// scatter about their weighted centroid, in the mean shape) for the aligned frame. Below it
+/// the weight sits on two markers, or on markers in a line, the rotation about their line
+/// is fixed by markers of negligible weight, and the frame swings freely between frames
+/// (on a short, heavily occluded take a foot marker predicted from two shin markers was
+/// filled metres off). The paper's translated frame is used instead. A degeneracy guard, not
+/// a tuning: larger limits also dropped frames the alignment served (docs/benchmarks.md).
+pub const MIN_ALIGNED_SPREAD_MM: f64 = 0.1;
 /// Most complete frames the aligned frame's mean shape is averaged over.
 const REFERENCE_FRAMES: usize = 100;
 /// Frames per block when accumulating a covariance matrix.
@@ -429,11 +439,32 @@ fn moving_frame<'a>(
         }
         reference = sum.into_iter().map(|s| s / count as f64).collect();
     }
+    if weighted_spread_mm(&reference, weights) < MIN_ALIGNED_SPREAD_MM {
+        return Box::new(translated);
+    }
     Box::new(move |f: usize| {
         shape(f)
             .and_then(|points| procrustes::align_weighted(&points, &reference, weights))
             .unwrap_or_else(|| translated(f))
     })
+}
+
+/// The square root of the second-largest eigenvalue of the `weights`-weighted scatter of
+/// `points` about their weighted centroid (normalised by the total weight), in mm: how far
+/// the weighted points are from lying on one line.
+fn weighted_spread_mm(points: &[Vec3], weights: &[f64]) -> f64 {
+    let total: f64 = weights.iter().sum();
+    if !(total > 0.0) {
+        return 0.0;
+    }
+    let centre = points.iter().zip(weights).map(|(p, w)| p * *w).sum::<Vec3>() / total;
+    let mut scatter = nalgebra::Matrix3::zeros();
+    for (p, w) in points.iter().zip(weights) {
+        scatter += (p - centre) * (p - centre).transpose() * (*w / total);
+    }
+    let mut eigenvalues: Vec<f64> = scatter.symmetric_eigenvalues().iter().copied().collect();
+    eigenvalues.sort_by(|a, b| b.total_cmp(a));
+    eigenvalues[1].max(0.0).sqrt()
 }
 
 /// Eigenvectors of a covariance matrix as columns, largest eigenvalue first, with the square
@@ -622,6 +653,19 @@ mod tests {
                 proptest::prop_assert!(e < 1e-6, "frame {}: {} mm", f, e);
             }
         }
+    }
+
+    /// Two heavy predictors and a light one off their line: the rotation about the line rests
+    /// on a weight of 1e-10, too little to fix a frame, so the aligned frame is not used; three
+    /// heavy ones in a triangle fix it.
+    #[test]
+    fn a_frame_resting_on_two_markers_is_not_aligned() {
+        let pair = [Vec3::new(0.0, 0.0, 0.0), Vec3::new(100.0, 0.0, 0.0), Vec3::new(0.0, 1500.0, 0.0)];
+        let spread = weighted_spread_mm(&pair, &[0.8, 0.2, 1e-10]);
+        assert!(spread < MIN_ALIGNED_SPREAD_MM, "{spread} mm");
+        let triangle = weighted_spread_mm(&pair, &[0.8, 0.2, 0.1]);
+        assert!(triangle > 10.0, "{triangle} mm");
+        assert_eq!(weighted_spread_mm(&pair, &[0.0; 3]), 0.0);
     }
 
     #[test]
