@@ -35,7 +35,8 @@
 //!    fill it would fall back to;
 //! 3. the real gap is filled with the inverse-squared-RMSE blend of the best
 //!    [`AutoConfig::blend`] candidates (1: the best alone), per frame over the candidates that
-//!    filled that frame (the reference where none did). With no qualifying trial window (a
+//!    filled that frame (the reference where none did), leaving out a candidate's sample that
+//!    is implausible (below). With no qualifying trial window (a
 //!    short take, a marker almost never captured) a fixed ranking by gap length is used
 //!    instead ([`default_ranking`]), measured once on one take, not per take.
 //!
@@ -98,6 +99,15 @@
 //!   noise. Body-worn markers of the 41-marker set never qualify (the steadiest head
 //!   marker's third neighbour varies by 3.3 mm), and a 62-marker set's plates all do
 //!   (0.2-1.0 mm; 1.5 changed little, 2 took in the feet and was worse; docs/benchmarks.md).
+//! - The real gap's fill has no truth to check it against, so its samples are checked for
+//!   plausibility: a blended candidate's sample must keep the marker's distance to at least
+//!   half of its [`PLAUSIBILITY_NEIGHBOURS`] best neighbours captured there within what the
+//!   take shows for that pair, widened by the pair's own range and at least
+//!   [`PLAUSIBLE_MARGIN_MM`]. One that does not is left out (the other blended candidate, or
+//!   the best-ranked one that passes, fills; where none passes, the blend stands). Trials
+//!   score a candidate on average, and a candidate that is right on them can still fail
+//!   grossly on the real gap (a PCA frame resting on two markers put a foot metres off). Half
+//!   of the neighbours, not all: a captured neighbour can be wrong itself for a few frames.
 //! - PCA sees a wider window (30 s each side) than the other candidates (2 s): its
 //!   covariance gains from more poses, EDM's ranking and the interpolations do not.
 //! - The PCA candidate is the paper's PCA in the aligned frame ([`FillMethod::PcaAligned`]),
@@ -154,6 +164,15 @@ const CLUSTER_PARTNERS: usize = 3;
 /// Smallest RMSE (mm) used for a blend weight: a trial filled exactly does not take all the
 /// weight on the strength of a few samples.
 const RMSE_FLOOR_MM: f64 = 0.5;
+
+/// Neighbours whose distances a filled sample must keep ([`GapChoice::implausible`]).
+pub const PLAUSIBILITY_NEIGHBOURS: usize = 3;
+/// Least margin (mm) beyond the distances a take shows between a marker and a neighbour
+/// before a fill of it is implausible; the margin is the distance's own range where that is
+/// wider. A guard against a candidate gone wrong (a projection through a degenerate frame put
+/// a foot metres away), not a judge of accuracy: a pose the take shows nowhere else stays
+/// well inside it.
+pub const PLAUSIBLE_MARGIN_MM: f64 = 50.0;
 
 /// Most trial gaps elsewhere in time for one real gap ([`AutoConfig::trial_time_s`]).
 pub const MOST_TRIALS: usize = 12;
@@ -314,6 +333,12 @@ pub struct GapChoice {
     pub trial_rmse_mm: Vec<(FillMethod, f64)>,
     /// Samples of the gap that were filled.
     pub filled: usize,
+    /// Samples where a blended candidate was left out as implausible: it put the marker far
+    /// outside the distances to its best neighbours that the take shows
+    /// ([`PLAUSIBLE_MARGIN_MM`]); the other blended one fills there, or else the best-ranked
+    /// candidate that is plausible.
+    #[serde(default)]
+    pub implausible: usize,
 }
 
 impl GapChoice {
@@ -377,15 +402,7 @@ pub fn default_ranking(gap_s: f64, edge: bool) -> &'static [FillMethod] {
 pub fn fill(take: &Take, config: &AutoConfig) -> AutoFilled {
     let m = take.marker_count();
     let frames = take.frame_count();
-    let cx = Context {
-        take,
-        config,
-        ranked: neighbours::rank_scored(take, config.selection),
-        nearest: if config.pca_markers < m { neighbours::rank(take, Selection::MeanDistance) } else { Vec::new() },
-        context: ((config.context_s * take.frame_rate_hz()).round() as usize).max(1),
-        pca_context: ((config.pca_context_s * take.frame_rate_hz()).round() as usize).max(1),
-        search: (config.search_s * take.frame_rate_hz()).round() as usize,
-    };
+    let cx = Context::new(take, config);
     let work: Vec<(usize, Gap)> = (0..m)
         .filter(|i| !take.markers()[*i].is_unlabeled())
         .filter(|i| (0..frames).any(|f| take.is_valid(f, *i)))
@@ -429,6 +446,41 @@ struct Context<'a> {
     pca_context: usize,
     /// Farthest trial offset in frames.
     search: usize,
+    /// Per marker, the distances to its [`PLAUSIBILITY_NEIGHBOURS`] best neighbours a fill
+    /// must keep ([`plausible_distances`]; empty for markers without gaps).
+    plausible: Vec<Vec<PlausibleDistance>>,
+}
+
+/// The range a filled marker's distance to one neighbour must stay in.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct PlausibleDistance {
+    neighbour: usize,
+    least_mm: f64,
+    most_mm: f64,
+}
+
+impl<'a> Context<'a> {
+    fn new(take: &'a Take, config: &'a AutoConfig) -> Context<'a> {
+        let m = take.marker_count();
+        let ranked = neighbours::rank_scored(take, config.selection);
+        let plausible: Vec<Vec<PlausibleDistance>> = (0..m)
+            .into_par_iter()
+            .map(|i| {
+                let gapped = (0..take.frame_count()).any(|f| !take.is_valid(f, i));
+                if gapped { plausible_distances(take, i, &ranked[i]) } else { Vec::new() }
+            })
+            .collect();
+        Context {
+            take,
+            config,
+            ranked,
+            nearest: if config.pca_markers < m { neighbours::rank(take, Selection::MeanDistance) } else { Vec::new() },
+            context: ((config.context_s * take.frame_rate_hz()).round() as usize).max(1),
+            pca_context: ((config.pca_context_s * take.frame_rate_hz()).round() as usize).max(1),
+            search: (config.search_s * take.frame_rate_hz()).round() as usize,
+            plausible,
+        }
+    }
 }
 
 /// A sub-take and the take's frames it holds.
@@ -557,22 +609,48 @@ impl Context<'_> {
             Some(k) => Some(fills[k].clone()),
             None => Some(run(reference)),
         };
+        // Candidates further down the ranking, filled only where every chosen one is
+        // implausible at a frame.
+        let spare: Vec<(FillMethod, std::cell::OnceCell<Vec<Option<Vec3>>>)> =
+            ranking.iter().filter(|c| !chosen.contains(c)).map(|c| (*c, std::cell::OnceCell::new())).collect();
         let mut samples = Vec::with_capacity(gap.len);
+        let mut rejected = 0;
         for (k, f) in range.clone().enumerate() {
             let support = fallback.as_ref().and_then(|fb| fb[k]);
             if edge != Edge::Inside && support.is_none() {
                 continue;
             }
-            let mut sum = Vec3::zeros();
-            let mut total = 0.0;
-            for (c, fill) in chosen.iter().zip(&fills) {
-                if let Some(p) = fill[k] {
-                    let w = weight(*c);
-                    sum += p * w;
-                    total += w;
+            // The blend of the chosen candidates that keep the marker plausible; where none
+            // does, the best-ranked other candidate that does; where none at all, the blend
+            // unguarded (a guard must not make a fill worse than every candidate's).
+            let blend = |guarded: bool| -> Option<Vec3> {
+                let mut sum = Vec3::zeros();
+                let mut total = 0.0;
+                for (c, fill) in chosen.iter().zip(&fills) {
+                    let Some(p) = fill[k] else { continue };
+                    if guarded && !self.is_plausible(marker, f, &p) {
+                        continue;
+                    }
+                    sum += p * weight(*c);
+                    total += weight(*c);
                 }
+                (total > 0.0).then(|| sum / total)
+            };
+            let unguarded = blend(false);
+            let guarded = blend(true);
+            let all_chosen_plausible =
+                chosen.iter().zip(&fills).all(|(_, fill)| fill[k].is_none_or(|p| self.is_plausible(marker, f, &p)));
+            if !all_chosen_plausible {
+                rejected += 1;
             }
-            let p = if total > 0.0 { Some(sum / total) } else { support };
+            let p = match (guarded, unguarded) {
+                (Some(p), _) => Some(p),
+                (None, Some(unguarded)) => spare
+                    .iter()
+                    .find_map(|(c, fill)| fill.get_or_init(|| run(*c))[k].filter(|p| self.is_plausible(marker, f, p)))
+                    .or(Some(unguarded)),
+                (None, None) => support,
+            };
             if let Some(p) = p.filter(|p| p.iter().all(|v| v.is_finite())) {
                 samples.push((f, p));
             }
@@ -585,6 +663,7 @@ impl Context<'_> {
             trials,
             trial_rmse_mm: scores,
             filled: samples.len(),
+            implausible: rejected,
         };
         (choice, samples)
     }
@@ -672,6 +751,21 @@ impl Context<'_> {
             }
         }
         list
+    }
+
+    /// Whether `p` as `marker`'s position at frame `f` keeps its distances to its best
+    /// neighbours captured there within what the take shows ([`plausible_distances`]), for
+    /// at least half of them: one neighbour can be wrong itself (a glitch of a few frames in
+    /// a captured marker), and must not veto a fill that every other neighbour agrees with.
+    fn is_plausible(&self, marker: usize, f: usize, p: &Vec3) -> bool {
+        let (mut seen, mut outside) = (0, 0);
+        for d in &self.plausible[marker] {
+            if let Some(q) = self.take.position_mm(f, d.neighbour) {
+                seen += 1;
+                outside += usize::from(!(d.least_mm..=d.most_mm).contains(&(p - q).norm()));
+            }
+        }
+        2 * outside <= seen
     }
 
     /// `marker` and the markers PCA sees, marker first.
@@ -878,6 +972,33 @@ impl Context<'_> {
     }
 }
 
+/// The distance ranges a fill of `marker` must keep to its [`PLAUSIBILITY_NEIGHBOURS`]
+/// best neighbours (`ranked`, best first): the least and most distance over the frames both
+/// are captured, widened by the range itself and at least [`PLAUSIBLE_MARGIN_MM`].
+fn plausible_distances(take: &Take, marker: usize, ranked: &[(usize, f64)]) -> Vec<PlausibleDistance> {
+    ranked
+        .iter()
+        .filter(|(_, v)| v.is_finite())
+        .take(PLAUSIBILITY_NEIGHBOURS)
+        .filter_map(|&(j, _)| {
+            let (mut least, mut most) = (f64::INFINITY, f64::NEG_INFINITY);
+            for f in 0..take.frame_count() {
+                if let (Some(a), Some(b)) = (take.position_mm(f, marker), take.position_mm(f, j)) {
+                    let d = (a - b).norm();
+                    least = least.min(d);
+                    most = most.max(d);
+                }
+            }
+            let margin = (most - least).max(PLAUSIBLE_MARGIN_MM);
+            (least <= most).then_some(PlausibleDistance {
+                neighbour: j,
+                least_mm: least - margin,
+                most_mm: most + margin,
+            })
+        })
+        .collect()
+}
+
 /// A candidate's score from its errors `errors`, trial `k` being `errors[bounds[k]..bounds[k +
 /// 1]]` (trials with no scored sample are skipped).
 fn trial_score(errors: &[Vec3], bounds: &[usize], score: TrialScore) -> f64 {
@@ -1023,6 +1144,30 @@ mod tests {
         assert_eq!(config.trials_for(0, 120.0), MOST_TRIALS);
         assert_eq!(AutoConfig { trial_time_s: 0.0, ..config }.trials_for(1, 120.0), 3);
         assert_eq!(AutoConfig { trials: 20, ..config }.trials_for(1, 120.0), 20);
+    }
+
+    /// A fill is implausible where it leaves the distances to its best neighbours that the
+    /// take shows, by the margin, for most of them; one neighbour gone wrong cannot veto it.
+    #[test]
+    fn a_fill_far_from_every_neighbour_is_implausible_and_one_glitch_cannot_veto() {
+        let truth = cluster(300, |i| format!("M{i}"));
+        let mut holed = truth.clone();
+        hide(&mut holed, 0, 100..140);
+        let config = AutoConfig::default();
+        let cx = Context::new(&holed, &config);
+        assert_eq!(cx.plausible[0].len(), PLAUSIBILITY_NEIGHBOURS);
+        assert!(cx.plausible[1].is_empty(), "a marker without gaps needs no bounds");
+        let at = |f: usize| truth.position_mm(f, 0).unwrap();
+        assert!(cx.is_plausible(0, 120, &at(120)));
+        assert!(cx.is_plausible(0, 120, &(at(120) + Vec3::new(30.0, 0.0, 0.0))), "within the margin");
+        assert!(!cx.is_plausible(0, 120, &(at(120) + Vec3::new(2000.0, 0.0, 0.0))));
+        // One best neighbour a metre off for a frame: the true position stays plausible.
+        let glitched = cx.plausible[0][0].neighbour;
+        let mut wrong = holed.clone();
+        let away = wrong.position_mm(120, glitched).unwrap() + Vec3::new(1000.0, 0.0, 0.0);
+        wrong.set_position_mm(120, glitched, Some(away)).unwrap();
+        let cx = Context { take: &wrong, ..Context::new(&holed, &config) };
+        assert!(cx.is_plausible(0, 120, &at(120)));
     }
 
     #[test]

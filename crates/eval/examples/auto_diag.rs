@@ -82,12 +82,13 @@ fn main() -> anyhow::Result<()> {
             })
             .collect();
         println!(
-            "| {} | {} | {:?} | {} ({} trials) | {:.1} | {} | {} |",
+            "| {} | {} | {:?} | {} ({} trials, {} implausible) | {:.1} | {} | {} |",
             gap.bucket,
             truth.markers()[gap.marker],
             gap.frames,
             choice.map_or("-".into(), |c| c.method()),
             choice.map_or(0, |c| c.trials),
+            choice.map_or(0, |c| c.implausible),
             rmse(&out.filled.take),
             real.join(" | "),
             trials.join(" | ")
