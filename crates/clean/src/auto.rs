@@ -11,13 +11,13 @@
 //! For every gap of marker `i` over frames `[s, e)`:
 //! 1. *trial gaps*: [`AutoConfig::trials`] windows (more for short gaps) of the same length
 //!    where `i` *is* captured, nearest in time to the real gap first (on both sides, seeded
-//!    jitter so they do not all fall on one motion phase), within [`AutoConfig::search_s`]. Each trial hides
-//!    `i` over its window and also every marker that is missing at the corresponding frame of
-//!    the real gap, so a gap with simultaneous neighbours is tried with the same neighbours
-//!    missing. A window qualifies only where `i` and its borders are captured and each of
-//!    `i`'s [`CHECKED_NEIGHBOURS`] best neighbours that is captured throughout the real gap is
-//!    captured throughout the window as well (the trial must not see a poorer neighbourhood
-//!    than the real gap, nor, by the hiding rule, a richer one);
+//!    jitter so they do not all fall on one motion phase), within [`AutoConfig::search_s`].
+//!    Each trial hides `i` over its window and also every marker that is missing at the
+//!    corresponding frame of the real gap, so a gap with simultaneous neighbours is tried
+//!    with the same neighbours missing. A window qualifies only where `i` and its borders
+//!    are captured and each of `i`'s [`CHECKED_NEIGHBOURS`] best neighbours that is captured
+//!    throughout the real gap is captured throughout the window as well (the trial must not
+//!    see a poorer neighbourhood than the real gap, nor, by the hiding rule, a richer one);
 //!    and [`AutoConfig::neighbour_trials`] trials at the real gap's *own* frames: each of
 //!    `i`'s best neighbours that is captured throughout the gap and its borders is hidden
 //!    there in its turn (with `i` and whatever else is missing there) and filled. They see the
@@ -36,9 +36,9 @@
 //! 3. the real gap is filled with the inverse-squared-RMSE blend of the best
 //!    [`AutoConfig::blend`] candidates (1: the best alone), per frame over the candidates that
 //!    filled that frame (the reference where none did), leaving out a candidate's sample that
-//!    is implausible (below). With no qualifying trial window (a
-//!    short take, a marker almost never captured) a fixed ranking by gap length is used
-//!    instead ([`default_ranking`]), measured once on one take, not per take.
+//!    is implausible (below). With no qualifying trial window (a short take, a marker almost
+//!    never captured) a fixed ranking by gap length is used instead ([`default_ranking`]),
+//!    measured once on one take, not per take.
 //!
 //! [`AutoFilled::choices`] records, per gap, the blend, the trial count and every
 //! candidate's trial RMSE, so the clean stage can write which method filled which gap.
