@@ -622,27 +622,22 @@ impl Context<'_> {
             }
             // The blend of the chosen candidates that keep the marker plausible; where none
             // does, the best-ranked other candidate that does; where none at all, the blend
-            // unguarded (a guard must not make a fill worse than every candidate's).
+            // unguarded (a guard must not make a fill worse than every candidate's). Each
+            // chosen candidate's sample here, with whether it is plausible (checked once):
+            let here: Vec<(f64, Vec3, bool)> = chosen
+                .iter()
+                .zip(&fills)
+                .filter_map(|(c, fill)| fill[k].map(|p| (weight(*c), p, self.is_plausible(marker, f, &p))))
+                .collect();
             let blend = |guarded: bool| -> Option<Vec3> {
-                let mut sum = Vec3::zeros();
-                let mut total = 0.0;
-                for (c, fill) in chosen.iter().zip(&fills) {
-                    let Some(p) = fill[k] else { continue };
-                    if guarded && !self.is_plausible(marker, f, &p) {
-                        continue;
-                    }
-                    sum += p * weight(*c);
-                    total += weight(*c);
-                }
+                let kept = here.iter().filter(|(_, _, plausible)| *plausible || !guarded);
+                let (sum, total) = kept.fold((Vec3::zeros(), 0.0), |(sum, total), (w, p, _)| (sum + p * *w, total + w));
                 (total > 0.0).then(|| sum / total)
             };
-            let unguarded = blend(false);
-            let guarded = blend(true);
-            let all_chosen_plausible =
-                chosen.iter().zip(&fills).all(|(_, fill)| fill[k].is_none_or(|p| self.is_plausible(marker, f, &p)));
-            if !all_chosen_plausible {
+            if here.iter().any(|(_, _, plausible)| !plausible) {
                 rejected += 1;
             }
+            let (guarded, unguarded) = (blend(true), blend(false));
             let p = match (guarded, unguarded) {
                 (Some(p), _) => Some(p),
                 (None, Some(unguarded)) => spare

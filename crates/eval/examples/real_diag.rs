@@ -44,7 +44,7 @@ fn main() -> anyhow::Result<()> {
             if !seen.insert((m, c.frames.start)) {
                 continue;
             }
-            let rmse = |take: &locap_core::Take| -> f64 {
+            let mean_error = |take: &locap_core::Take| -> f64 {
                 let v: Vec<f64> = hidden
                     .iter()
                     .filter(|(g, k, _)| *k == m && c.frames.contains(g))
@@ -52,7 +52,7 @@ fn main() -> anyhow::Result<()> {
                     .collect();
                 v.iter().sum::<f64>() / v.len().max(1) as f64
             };
-            let real: Vec<String> = each.iter().map(|t| format!("{:.1}", rmse(t))).collect();
+            let real: Vec<String> = each.iter().map(|t| format!("{:.1}", mean_error(t))).collect();
             let trials: Vec<String> = methods
                 .iter()
                 .map(|x| c.trial_rmse_mm.iter().find(|(t, _)| t == x).map_or("-".into(), |(_, e)| format!("{e:.1}")))
@@ -64,7 +64,7 @@ fn main() -> anyhow::Result<()> {
                 c.frames,
                 c.method(),
                 c.trials,
-                rmse(&out.filled.take),
+                mean_error(&out.filled.take),
                 real.join(" | "),
                 trials.join(" | ")
             );
