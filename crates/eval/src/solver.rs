@@ -254,7 +254,13 @@ pub fn evaluate_methods(
     let Some(first) = shards.first() else { return Err(SolverEvalError::NoShards) };
     let j = first.skeleton.len();
     for (name, s) in methods {
-        let names = |sk: &locap_core::Skeleton| sk.joints().iter().map(|jj| jj.name.clone()).collect::<Vec<_>>();
+        // The same joints in any order: a model trained first on a BVH export lists them
+        // depth first, one trained on ASF/AMC shards its end sites last.
+        let names = |sk: &locap_core::Skeleton| {
+            let mut v = sk.joints().iter().map(|jj| jj.name.clone()).collect::<Vec<_>>();
+            v.sort_unstable();
+            v
+        };
         if shards.iter().any(|sh| names(&sh.skeleton) != names(s.skeleton())) {
             return Err(SolverEvalError::OtherSkeleton { model: name.clone() });
         }
@@ -315,6 +321,14 @@ fn score_take(solver: &Method, shard: &SolverShard, cleaned: &Cleaned) -> Result
         .solve_cleaned(cleaned, shard.clean.frame_rate_hz())
         .map_err(|source| SolverEvalError::Solve { shard: shard.name.clone(), source })?;
     let j = shard.skeleton.len();
+    // `from[k]`: the solved motion's joint that is the shard's joint `k`.
+    let from: Vec<usize> = shard
+        .skeleton
+        .joints()
+        .iter()
+        .map(|joint| motion.skeleton.index_of(&joint.name))
+        .collect::<Option<_>>()
+        .ok_or_else(|| SolverEvalError::OtherSkeleton { model: shard.name.clone() })?;
     let mut acc = Acc::new(j);
     acc.seconds = started.elapsed().as_secs_f64();
     acc.frames = motion.frame_count();
@@ -322,16 +336,17 @@ fn score_take(solver: &Method, shard: &SolverShard, cleaned: &Cleaned) -> Result
     for (f, longest) in longest.iter().enumerate().take(motion.frame_count()) {
         let pose = motion.forward_kinematics(f);
         let mut frame = Mean::default();
-        for (k, p) in pose.positions_mm.iter().enumerate() {
-            let e = (shard.lab.to_lab(*p) - shard.joint_positions_mm[f * j + k]).norm();
+        for (k, &m) in from.iter().enumerate() {
+            let e = (shard.lab.to_lab(pose.positions_mm[m]) - shard.joint_positions_mm[f * j + k]).norm();
             acc.jpe[k].add(e);
             frame.add(e);
         }
         acc.jpe_by_gap[gap_bin(*longest)].add(frame.get().unwrap_or(0.0));
         let truth = &shard.rotations[f * j..(f + 1) * j];
-        for (k, (q, t)) in motion.local_rotations(f).iter().zip(truth).enumerate() {
-            if rotating[k] {
-                acc.joe[k].add(q.angle_to(t).to_degrees());
+        let solved = motion.local_rotations(f);
+        for (k, (&m, t)) in from.iter().zip(truth).enumerate() {
+            if rotating[m] {
+                acc.joe[k].add(solved[m].angle_to(t).to_degrees());
             }
         }
     }

@@ -277,6 +277,108 @@ fn solver_shards(n: u64, frames: usize) -> Vec<locap_nn::solver::SolverShard> {
         .collect()
 }
 
+/// The skeleton's joints depth first with every joint's children in reverse index order:
+/// another valid order of the same skeleton (a BVH export's is depth first).
+fn reordered(skeleton: &Skeleton) -> Skeleton {
+    let joints = skeleton.joints();
+    let mut order = Vec::new();
+    let mut stack: Vec<usize> = (0..joints.len()).filter(|j| joints[*j].parent.is_none()).collect();
+    while let Some(j) = stack.pop() {
+        order.push(j);
+        stack.extend(skeleton.children(j));
+    }
+    let at = |j: usize| order.iter().position(|o| *o == j).unwrap();
+    Skeleton::new(order.iter().map(|&j| Joint { parent: joints[j].parent.map(at), ..joints[j].clone() }).collect())
+        .unwrap()
+}
+
+/// Shards of one skeleton in another joint order train together: each is put into the first
+/// shard's order, its rotations and joint positions with it, and a skeleton with another
+/// parent anywhere is still refused.
+#[test]
+fn shards_of_one_skeleton_in_another_joint_order_are_conformed() {
+    use locap_nn::solver::SolverData;
+    use locap_nn::solver::data::in_joint_order;
+    let shards = solver_shards(2, 60);
+    let other = reordered(&shards[1].skeleton);
+    let names = |s: &Skeleton| s.joints().iter().map(|j| j.name.clone()).collect::<Vec<_>>();
+    assert_ne!(names(&other), names(&shards[1].skeleton), "the test needs another order");
+    let moved = in_joint_order(shards[1].clone(), &other).unwrap();
+    assert_eq!(names(&moved.skeleton), names(&other));
+    assert_ne!(moved.rotations, shards[1].rotations);
+    let data = SolverData::new(vec![shards[0].clone(), moved]).unwrap();
+    assert_eq!(data.shards[1].skeleton, shards[1].skeleton);
+    assert_eq!(data.shards[1].rotations, shards[1].rotations);
+    assert_eq!(data.shards[1].joint_positions_mm, shards[1].joint_positions_mm);
+    // A first shard that lists its end sites among the other joints, as a BVH file does:
+    // training puts them last, and the other shards with them.
+    let with_ends = |shard: &locap_nn::solver::SolverShard| {
+        let sk = &shard.skeleton;
+        let joints = sk
+            .joints()
+            .iter()
+            .enumerate()
+            .map(|(k, j)| Joint { is_end_site: sk.children(k).next().is_none(), ..j.clone() })
+            .collect();
+        locap_nn::solver::SolverShard { skeleton: Skeleton::new(joints).unwrap(), ..shard.clone() }
+    };
+    let (a, b) = (with_ends(&shards[0]), with_ends(&shards[1]));
+    let first = in_joint_order(a.clone(), &reordered(&a.skeleton)).unwrap();
+    let ends = |s: &Skeleton| s.joints().iter().map(|j| j.is_end_site).collect::<Vec<_>>();
+    assert!(ends(&first.skeleton).windows(2).any(|w| w[0] && !w[1]), "an end site before a joint");
+    let data = SolverData::new(vec![first.clone(), b.clone()]).unwrap();
+    let (ended, joints): (Vec<&Joint>, Vec<&Joint>) = first.skeleton.joints().iter().partition(|j| j.is_end_site);
+    let expected: Vec<String> = joints.iter().chain(&ended).map(|j| j.name.clone()).collect();
+    assert_eq!(names(&data.skeleton), expected, "end sites last, each group in the first shard's order");
+    for shard in &data.shards {
+        assert_eq!(shard.skeleton.joints().len(), data.skeleton.len());
+        assert_eq!(names(&shard.skeleton), expected);
+    }
+    let rotation_of = |s: &locap_nn::solver::SolverShard, name: &str, f: usize| {
+        s.rotations[f * s.skeleton.len() + s.skeleton.index_of(name).unwrap()]
+    };
+    for name in &expected {
+        assert_eq!(rotation_of(&data.shards[0], name, 7), rotation_of(&a, name, 7));
+        assert_eq!(rotation_of(&data.shards[1], name, 7), rotation_of(&b, name, 7));
+    }
+    // One joint hung from another parent: not the same skeleton.
+    let mut joints = shards[1].skeleton.joints().to_vec();
+    let leaf = joints.len() - 1;
+    joints[leaf].parent = Some(0).filter(|p| joints[leaf].parent != Some(*p)).or(Some(1));
+    let wrong = locap_nn::solver::SolverShard { skeleton: Skeleton::new(joints).unwrap(), ..shards[1].clone() };
+    assert!(matches!(SolverData::new(vec![shards[0].clone(), wrong]), Err(NnError::OtherSkeleton { .. })));
+}
+
+/// A joint that a solver holds still up to a few hundredths of a degree (the kinematic
+/// solver's locked joints) does not count as rotating: its rotation is the identity in the
+/// model, as a joint the data never turns; one that turns a few degrees does rotate.
+#[test]
+fn a_joint_jittering_by_hundredths_of_a_degree_does_not_rotate() {
+    use locap_nn::solver::{SolverData, SolverTrainConfig, train_solver};
+    let _one_at_a_time = TRAINING.lock().unwrap_or_else(|e| e.into_inner());
+    let mut shards = solver_shards(1, 120);
+    let j = shards[0].skeleton.len();
+    // Two joints' motion replaced: only whether they rotate is looked at here.
+    let joints: Vec<usize> = (1..j).filter(|k| !shards[0].skeleton.joints()[*k].is_end_site).collect();
+    let (jitter, turn) = (joints[0], joints[1]);
+    for (f, frame) in shards[0].rotations.chunks_exact_mut(j).enumerate() {
+        let wobble = (f as f64 * 0.7).sin();
+        frame[jitter] = Quat::from_axis_angle(&Vec3::x_axis(), (0.05 * wobble).to_radians());
+        frame[turn] = Quat::from_axis_angle(&Vec3::x_axis(), (3.0 * wobble).to_radians());
+    }
+    let data = SolverData::new(shards).unwrap();
+    let config = SolverTrainConfig {
+        batch: 16,
+        schedule: Schedule { steps: 1, learning_rate: 1e-3, warmup_steps: 0 },
+        net: locap_nn::solver::NetConfig { channels: 4, global: 8, ..SolverTrainConfig::default().net },
+        validation_frames: 16,
+        ..SolverTrainConfig::default()
+    };
+    let (solver, _) = train_solver(&data, &config, None, &mut |_| {}).unwrap();
+    assert!(!solver.meta.rotating[jitter], "jitter of 0.05 degrees");
+    assert!(solver.meta.rotating[turn], "turns of 3 degrees");
+}
+
 /// A tiny graph solver learns (validation joint error falls), beats its untrained self on
 /// held-out shards through the `locap solve` path, round-trips its model file, and refuses
 /// other marker sets and bad files; the MLP baseline trains in the same harness.
@@ -316,6 +418,15 @@ fn a_tiny_solver_learns_and_solves_takes() {
         evaluate(&[("trained".into(), &solver), ("untrained".into(), &untrained)], &test.shards, None).unwrap();
     eprintln!("{}", locap_eval::solver::table("body", &scores));
     assert!(scores[0].jpe_mm < 0.5 * scores[1].jpe_mm && scores[0].joe_deg < scores[1].joe_deg, "{scores:?}");
+    // The same shard with its joints in another order scores the same: joints match by name.
+    let moved: Vec<_> = test
+        .shards
+        .iter()
+        .map(|s| locap_nn::solver::data::in_joint_order(s.clone(), &reordered(&s.skeleton)).unwrap())
+        .collect();
+    let again = evaluate(&[("trained".into(), &solver)], &moved, None).unwrap();
+    assert!((again[0].jpe_mm - scores[0].jpe_mm).abs() < 1e-6, "{again:?}");
+    assert!((again[0].joe_deg - scores[0].joe_deg).abs() < 1e-6, "{again:?}");
     assert!(scores[0].ompe_mm.unwrap() > 0.0);
 
     // The model file round-trips; a solved take keeps its frame count and rate.

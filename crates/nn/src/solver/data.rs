@@ -60,6 +60,36 @@ pub fn solver_shard<R: Read>(reader: ShardReader<R>, name: &str) -> Result<Solve
     })
 }
 
+/// `shard` with its skeleton's joints in `order`'s order (its own offsets kept), or `None` if
+/// the two skeletons differ in joint names or in any joint's parent.
+pub fn in_joint_order(shard: SolverShard, order: &Skeleton) -> Option<SolverShard> {
+    let (own, wanted) = (shard.skeleton.joints(), order.joints());
+    let parent_name = |joints: &[locap_core::Joint], j: &locap_core::Joint| j.parent.map(|p| joints[p].name.clone());
+    if own.len() != wanted.len() {
+        return None;
+    }
+    // `from[k]`: the shard's index of `order`'s joint `k`.
+    let from: Vec<usize> = wanted.iter().map(|w| shard.skeleton.index_of(&w.name)).collect::<Option<_>>()?;
+    let same_parents = wanted.iter().zip(&from).all(|(w, &k)| parent_name(wanted, w) == parent_name(own, &own[k]));
+    if !same_parents {
+        return None;
+    }
+    if from.iter().enumerate().all(|(k, &f)| k == f) {
+        return Some(shard);
+    }
+    let joints: Vec<locap_core::Joint> =
+        wanted.iter().zip(&from).map(|(w, &k)| locap_core::Joint { parent: w.parent, ..own[k].clone() }).collect();
+    let skeleton = Skeleton::new(joints).ok()?;
+    let joint_positions_mm = permute_joints(&shard.joint_positions_mm, &from);
+    let rotations = permute_joints(&shard.rotations, &from);
+    Some(SolverShard { skeleton, joint_positions_mm, rotations, ..shard })
+}
+
+/// Frame-major per-joint `values` with joint `k` of each frame taken from joint `from[k]`.
+fn permute_joints<T: Copy>(values: &[T], from: &[usize]) -> Vec<T> {
+    values.chunks_exact(from.len().max(1)).flat_map(|frame| from.iter().map(move |&k| frame[k])).collect()
+}
+
 /// The rotation taking motion-frame coordinates to lab coordinates.
 pub fn lab_rotation(lab: LabFrame) -> Matrix3<f64> {
     let (x, y, z) = (lab.to_lab(Vec3::x()), lab.to_lab(Vec3::y()), lab.to_lab(Vec3::z()));
