@@ -131,9 +131,9 @@ impl SolverTrainConfig {
 
 /// `skeleton` with its end sites after every other joint, each group in its own order (an
 /// ASF skeleton's order; a BVH file lists each end site after its parent). Training uses
-/// this order whichever shard comes first: trained in the depth-first order of a BVH export
-/// the network learned rotations far worse (validation JOE 41.7 degrees after 500 steps,
-/// against 26.6 on the same shards in this order) for a reason not found.
+/// this order whichever shard comes first: trained in the depth-first order of a BVH export,
+/// the network learned rotations far worse on the same shards, for a reason not found
+/// (docs/benchmarks.md, "Neural solver, third model").
 fn end_sites_last(skeleton: &locap_core::Skeleton) -> Option<locap_core::Skeleton> {
     let joints = skeleton.joints();
     let (ends, others): (Vec<usize>, Vec<usize>) = (0..joints.len()).partition(|k| joints[*k].is_end_site);
@@ -189,8 +189,8 @@ pub struct SolverData {
 }
 
 impl SolverData {
-    /// Checks that `shards` share markers, joints and parents. A shard whose skeleton has the
-    /// first's joints and parents in another order is put into the first's order: a BVH
+    /// Checks that `shards` share markers, joints and parents, and puts every shard's joints
+    /// into one order: the first shard's with its end sites last (`end_sites_last`). A BVH
     /// export of a skeleton lists its end sites among the joints, an ASF after them, and
     /// motion solved from real takes (`locap solve` writes BVH) trains with motion
     /// synthesized from ASF/AMC.
@@ -200,7 +200,8 @@ impl SolverData {
     pub fn new(shards: Vec<SolverShard>) -> Result<SolverData, NnError> {
         let first = shards.first().ok_or(NnError::NoData { what: "training shards" })?;
         let markers: Vec<String> = first.clean.markers().iter().map(|n| n.label.clone()).collect();
-        let skeleton = end_sites_last(&first.skeleton).ok_or(NnError::NoData { what: "a skeleton" })?;
+        // Cannot fail: end sites are leaves, so every parent still comes first.
+        let skeleton = end_sites_last(&first.skeleton).ok_or(NnError::NoData { what: "valid skeleton" })?;
         let first_name = first.name.clone();
         let shards = shards
             .into_iter()
