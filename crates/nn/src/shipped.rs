@@ -31,9 +31,12 @@ pub const REFINERS: &[Shipped] = &[
     Shipped { name: "refiner-hand-right.locapnn", bytes: include_bytes!("../../../models/refiner-hand-right.locapnn") },
 ];
 
-/// The shipped solver.
+/// The shipped solver: the third body model (`models/README.md`, "solver-cmu41-v3"), whose
+/// answer, refined by the kinematic solver, is closer to the held-out subject's motion than the
+/// first model's on every measure but one (docs/benchmarks.md, "Neural solver, third model").
+/// The first and second models ship beside it for `--model` and comparison.
 pub const SOLVER: Shipped =
-    Shipped { name: "solver-cmu41.locapsv", bytes: include_bytes!("../../../models/solver-cmu41.locapsv") };
+    Shipped { name: "solver-cmu41-v3.locapsv", bytes: include_bytes!("../../../models/solver-cmu41-v3.locapsv") };
 
 /// The shipped solver, loaded on `device`.
 ///

@@ -25,8 +25,8 @@
 //! (`locap_eval::solver::wrists_within`), which needs no reference motion.
 //!
 //! Without `--model`, the solver shipped with locap is used (`locap_nn::shipped::solver`,
-//! `models/solver-cmu41.locapsv`: the CMU 41-marker set on the CMU ASF skeleton, built into the
-//! binary). The cleaning is `locap_clean::clean_with` with its defaults, and `--markers-out`
+//! `models/solver-cmu41-v3.locapsv`: the CMU 41-marker set on the CMU ASF skeleton, built into
+//! the binary). The cleaning is `locap_clean::clean_with` with its defaults, and `--markers-out`
 //! keeps the input file's parameters and analog data and records the cleaning in the `LOCAP`
 //! group, as `locap clean` does.
 
