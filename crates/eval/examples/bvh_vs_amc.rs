@@ -1,7 +1,8 @@
 //! A solved take against CMU's own solution, joint by joint (issue 17's real-take check).
-//! `cargo run --release -p locap-eval --example bvh_vs_amc -- SOLVED.bvh ASF AMC` reads the BVH
-//! `locap solve` wrote (centimetres, the animation tools' Y-up), turns it back into the lab's
-//! Z-up frame and prints JPE (also with the roots aligned), the root's error, JOE, and each
+//! `cargo run --release -p locap-eval --example bvh_vs_amc -- SOLVED.bvh (ASF AMC | TRUTH.bvh)`
+//! reads the BVH `locap solve` wrote (centimetres, the animation tools' Y-up), turns it back
+//! into the motion's own frame and compares it with CMU's AMC, or with the motion `locap synth`
+//! made the take from (`NAME.bvh`); it prints JPE (also with the roots aligned), the root's error, JOE, and each
 //! joint's JPE / JOE, worst first. Then how much of each joint's position error is a constant
 //! offset in its reference parent's frame (a skeleton or calibration difference: the joint
 //! centre sits elsewhere on its bone), and the JPE left with that offset removed.
@@ -21,13 +22,19 @@ fn skip(motion: &Motion, frames: usize) -> Result<Motion, Box<dyn std::error::Er
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().skip(1).collect();
-    let [bvh, asf, amc] = args.as_slice() else {
-        return Err("usage: bvh_vs_amc SOLVED.bvh ASF AMC".into());
-    };
+    let usage = "usage: bvh_vs_amc SOLVED.bvh (ASF AMC | TRUTH.bvh)";
+    let bvh = args.first().ok_or(usage)?;
     let solved = locap_io::bvh::read_bvh_path(Path::new(bvh), LengthUnit::Centimetre)?;
     let solved = solved.rotated(y_up_to_z_up_rotation().inverse() * z_up_to_tools_y_up_rotation().inverse());
-    let asf = locap_io::asf_amc::read_asf_path(Path::new(asf))?;
-    let reference = locap_io::asf_amc::read_amc_path(Path::new(amc), &asf, solved.frame_rate_hz())?;
+    let reference = match &args[1..] {
+        // The motion `locap synth` made a take from (its `NAME.bvh`: the motion's own frame).
+        [truth] => locap_io::bvh::read_bvh_path(Path::new(truth), LengthUnit::Centimetre)?,
+        [asf, amc] => {
+            let asf = locap_io::asf_amc::read_asf_path(Path::new(asf))?;
+            locap_io::asf_amc::read_amc_path(Path::new(amc), &asf, solved.frame_rate_hz())?
+        }
+        _ => return Err(usage.into()),
+    };
     // `LAG=k` compares solved frame f with reference frame f + k (a timing check).
     let lag: i64 = std::env::var("LAG").ok().and_then(|v| v.parse().ok()).unwrap_or(0);
     let (solved, reference) = (skip(&solved, (-lag).max(0) as usize)?, skip(&reference, lag.max(0) as usize)?);

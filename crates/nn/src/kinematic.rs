@@ -26,7 +26,7 @@
 
 use crate::NnError;
 use locap_clean::{CleanConfig, Cleaned, Filler};
-use locap_core::{Motion, Quat, Skeleton, Take, UpAxis, Vec3};
+use locap_core::{Joint, Motion, Quat, Skeleton, Take, UpAxis, Vec3};
 use locap_label::ik::{
     Attachment, DofAxis, JointCentre, JointCoupling, JointDofs, MarkerModel, SequenceConfig, solve_sequence_with_prior,
 };
@@ -199,6 +199,14 @@ pub struct KinematicSolver {
     /// network's joint rotations before they pull: a per-frame network flickers from frame to
     /// frame, and its flicker is no evidence of motion ([`PRIOR_HALF_WINDOW_S`]; 0: as given).
     pub prior_half_window_s: f64,
+    /// How far [`KinematicSolver::refine`] moves the template's bone offsets towards the
+    /// skeleton the network predicted for the take before the subject calibration (0: the
+    /// template; 1: the network's). Only the CMU body solver does it (its build is repeated on
+    /// the new skeleton): [`BODY_NETWORK_SKELETON`] there, 0 elsewhere.
+    pub network_skeleton: f64,
+    /// The joints the CMU body solver turns, when this is one ([`KinematicSolver::cmu41`]):
+    /// what it needs to be built again on another skeleton.
+    cmu_rotating: Option<Vec<bool>>,
 }
 
 /// [`KinematicSolver::refine_prior`] of a solver built from a layout's skeleton (the hands),
@@ -213,6 +221,18 @@ pub const REFINE_PRIOR: f64 = 3.0;
 /// no network was trained on it, nor is it a test take), 30 was best for both shipped body
 /// networks but for one mixed result at 100 (docs/benchmarks.md).
 pub const BODY_REFINE_PRIOR: f64 = 30.0;
+
+/// [`KinematicSolver::network_skeleton`] of the CMU body solver: halfway from the template to
+/// the skeleton the network predicted for the take. The subject calibration fits bone lengths
+/// (an overall scale, the wrist centres) but not where each joint centre sits on its bone, and
+/// on synthetic takes nearly all of the refined solve's joint position error is that: a
+/// constant offset per joint. The network, trained on many subjects, predicts the offsets from
+/// the markers; halfway keeps the template as a prior against its errors. Of 0, 0.25, 0.5,
+/// 0.75 and 1 on the validation takes (01_01's and 03_01's motion synthesized, as for
+/// [`BODY_REFINE_PRIOR`]), 0.5 and 0.75 were best; against CMU's own solutions of the two real
+/// takes, on which the layout's marker offsets were fitted, 0 is (docs/benchmarks.md, "The
+/// network's skeleton in the refinement").
+pub const BODY_NETWORK_SKELETON: f64 = 0.5;
 
 /// [`KinematicSolver::prior_half_window_s`] by default: each joint's prior rotation is the mean
 /// over 0.2 s on each side. Of 0.05, 0.1, 0.2 and 0.4 s on the body's validation take (CMU
@@ -288,6 +308,8 @@ impl KinematicSolver {
             config: SequenceConfig::default(),
             refine_prior: REFINE_PRIOR,
             prior_half_window_s: PRIOR_HALF_WINDOW_S,
+            network_skeleton: 0.0,
+            cmu_rotating: None,
         })
     }
 
@@ -366,8 +388,8 @@ impl KinematicSolver {
         // The template's wrist markers lie 45-75 mm from its hand joints (docs/benchmarks.md,
         // "Kinematic solver: ASF degrees of freedom"): the calibration fits the forearms so the
         // wrist centre lies between them.
-        KinematicSolver::cmu41_with(|skeleton| cmu_asf_dofs(skeleton, CmuLimits::Solved))?
-            .with_joint_centres(CMU_WRIST_CENTRES)
+        let shipped = crate::shipped::solver(&Default::default())?;
+        KinematicSolver::cmu41_on(&shipped.meta.skeleton, &shipped.meta.rotating)
     }
 
     /// [`KinematicSolver::cmu41`] with each joint's freedom from `dofs` (given the shipped
@@ -380,7 +402,31 @@ impl KinematicSolver {
     pub fn cmu41_with(dofs: impl FnOnce(&Skeleton) -> Vec<JointDofs>) -> Result<KinematicSolver, NnError> {
         let device = Default::default();
         let shipped = crate::shipped::solver(&device)?;
-        let skeleton = &shipped.meta.skeleton;
+        KinematicSolver::cmu41_on_with(&shipped.meta.skeleton, &shipped.meta.rotating, dofs)
+    }
+
+    /// [`KinematicSolver::cmu41`] on another CMU skeleton (the same joints; e.g. the one a
+    /// network solve predicted for the take), turning the joints `rotating` marks.
+    ///
+    /// # Errors
+    /// The layout does not bind to `skeleton`, or `rotating` is not one per joint.
+    pub fn cmu41_on(skeleton: &Skeleton, rotating: &[bool]) -> Result<KinematicSolver, NnError> {
+        let mut solver =
+            KinematicSolver::cmu41_on_with(skeleton, rotating, |skeleton| cmu_asf_dofs(skeleton, CmuLimits::Solved))?
+                .with_joint_centres(CMU_WRIST_CENTRES)?;
+        solver.cmu_rotating = Some(rotating.to_vec());
+        solver.network_skeleton = BODY_NETWORK_SKELETON;
+        Ok(solver)
+    }
+
+    fn cmu41_on_with(
+        skeleton: &Skeleton,
+        rotating: &[bool],
+        dofs: impl FnOnce(&Skeleton) -> Vec<JointDofs>,
+    ) -> Result<KinematicSolver, NnError> {
+        if rotating.len() != skeleton.len() {
+            return Err(NnError::Kinematic(format!("{} rotating flags for {} joints", rotating.len(), skeleton.len())));
+        }
         let given = dofs(skeleton);
         if given.len() != skeleton.len() {
             return Err(NnError::Kinematic(format!(
@@ -391,7 +437,7 @@ impl KinematicSolver {
         }
         let dofs = given
             .into_iter()
-            .zip(&shipped.meta.rotating)
+            .zip(rotating)
             .enumerate()
             .map(|(j, (d, r))| if *r || j == 0 { d } else { JointDofs::Axes(Vec::new()) })
             .collect();
@@ -549,7 +595,9 @@ impl KinematicSolver {
     /// over [`KinematicSolver::prior_half_window_s`] on each side): another
     /// solver's answer (a network's) refined by the markers. The network knows how people
     /// move where the markers say little (twists, fingers); the fit puts the joints where the
-    /// markers are. A joint `prior` lacks is pulled towards its rest orientation as hard.
+    /// markers are. A joint `prior` lacks is pulled towards its rest orientation as hard. The
+    /// CMU body solver first moves its template skeleton towards `prior`'s
+    /// ([`KinematicSolver::network_skeleton`]).
     ///
     /// # Errors
     /// As [`KinematicSolver::solve_cleaned`], or `prior` has another frame count.
@@ -566,6 +614,9 @@ impl KinematicSolver {
                 prior.frame_count()
             )));
         }
+        if let (true, Some(rotating)) = (self.network_skeleton > 0.0, &self.cmu_rotating) {
+            return self.on_skeleton_towards(&prior.skeleton, rotating)?.refine(cleaned, rate_hz, prior);
+        }
         let joints = self.model.skeleton().joints();
         let from: Vec<Option<usize>> = joints.iter().map(|j| prior.skeleton.index_of(&j.name)).collect();
         let poses: Vec<Vec<Quat>> = (0..frames)
@@ -577,6 +628,30 @@ impl KinematicSolver {
         let half = (self.prior_half_window_s * rate_hz).round();
         let poses = if half >= 1.0 { mean_rotations(&poses, half as usize) } else { poses };
         self.solve_frames(cleaned, rate_hz, Some(&poses))
+    }
+
+    /// The CMU body solver built again on its template with each bone offset moved
+    /// [`KinematicSolver::network_skeleton`] of the way to `target`'s (joints matched by name;
+    /// one `target` lacks keeps the template's), with this solver's settings.
+    fn on_skeleton_towards(&self, target: &Skeleton, rotating: &[bool]) -> Result<KinematicSolver, NnError> {
+        let w = self.network_skeleton.clamp(0.0, 1.0);
+        let joints = self
+            .model
+            .skeleton()
+            .joints()
+            .iter()
+            .map(|j| {
+                let to = target.index_of(&j.name).map_or(j.offset_mm, |k| target.joints()[k].offset_mm);
+                Joint { offset_mm: (1.0 - w) * j.offset_mm + w * to, ..j.clone() }
+            })
+            .collect();
+        let skeleton = Skeleton::new(joints).map_err(NnError::Skeleton)?;
+        let mut solver = KinematicSolver::cmu41_on(&skeleton, rotating)?;
+        solver.config = self.config;
+        solver.refine_prior = self.refine_prior;
+        solver.prior_half_window_s = self.prior_half_window_s;
+        solver.network_skeleton = 0.0;
+        Ok(solver)
     }
 
     fn solve_frames(
@@ -666,6 +741,36 @@ mod tests {
         }
         // At the ends the window is cut: the first frame is the mean of the first six.
         assert!(mean[0][0].angle_to(&Quat::from_axis_angle(&axis, 0.025)) < 1e-4);
+    }
+
+    /// The refinement's skeleton moves the asked share of the way from the template to the
+    /// network's, joint by joint; a joint the network lacks keeps the template's offset, and
+    /// the solver keeps its settings.
+    #[test]
+    fn the_network_skeleton_moves_each_bone_its_share_of_the_way() {
+        let mut solver = KinematicSolver::cmu41().unwrap();
+        solver.refine_prior = 7.0;
+        solver.network_skeleton = 0.25;
+        let template = solver.skeleton().clone();
+        let femur = template.index_of("lfemur").unwrap();
+        let tibia = template.index_of("ltibia").unwrap();
+        // The network's skeleton: the left femur 40 mm longer along x; no left tibia.
+        let mut joints = template.joints().to_vec();
+        joints[femur].offset_mm += Vec3::new(40.0, 0.0, 0.0);
+        joints[tibia].name = "other".into();
+        let network = Skeleton::new(joints).unwrap();
+        let rotating = solver.cmu_rotating.clone().unwrap();
+        let moved = solver.on_skeleton_towards(&network, &rotating).unwrap();
+        let offset = |s: &KinematicSolver, j: usize| s.skeleton().joints()[j].offset_mm;
+        assert!((offset(&moved, femur) - offset(&solver, femur) - Vec3::new(10.0, 0.0, 0.0)).norm() < 1e-9);
+        assert_eq!(offset(&moved, tibia), offset(&solver, tibia));
+        let other = template.index_of("rfemur").unwrap();
+        assert!((offset(&moved, other) - offset(&solver, other)).norm() < 1e-9);
+        assert_eq!((moved.refine_prior, moved.network_skeleton), (7.0, 0.0));
+        assert_eq!(moved.rotating(), solver.rotating());
+        // Solvers not built as the CMU body solver have nothing to rebuild: not moved.
+        let layout = Layout::from_toml(include_str!("../../synth/layouts/hand-left.toml")).unwrap();
+        assert!(KinematicSolver::from_layout(&layout).unwrap().cmu_rotating.is_none());
     }
 
     /// A layout's skeleton sets the solver's smoothness weight; without one the default holds.

@@ -69,6 +69,11 @@ pub struct Args {
     /// each frame's own).
     #[arg(long, value_name = "SECONDS", requires = "refine", help_heading = "Input")]
     prior_window: Option<f64>,
+    /// How far `--refine` moves the CMU template's bone offsets towards the skeleton the
+    /// network predicted for each take, 0 (the template) to 1 (default:
+    /// `locap_nn::kinematic::BODY_NETWORK_SKELETON`).
+    #[arg(long, value_name = "SHARE", requires = "refine", help_heading = "Input")]
+    network_skeleton: Option<f64>,
     /// Write the results as JSON.
     #[arg(long, value_name = "FILE", help_heading = "Output")]
     json: Option<PathBuf>,
@@ -167,6 +172,10 @@ pub fn run(args: Args) -> Result<ExitCode> {
         if let Some(s) = args.prior_window {
             anyhow::ensure!(s.is_finite() && (0.0..=10.0).contains(&s), "--prior-window {s}: 0 to 10 seconds");
             k.prior_half_window_s = s;
+        }
+        if let Some(w) = args.network_skeleton {
+            anyhow::ensure!((0.0..=1.0).contains(&w), "--network-skeleton {w}: a share from 0 to 1");
+            k.network_skeleton = w;
         }
         Some(k)
     } else {
