@@ -374,13 +374,13 @@ impl KinematicSolver {
     /// The CMU 41-marker set ([`Layout::cmu41`]) on the shipped network solver's CMU skeleton
     /// (the mean of the network's training subjects: a refinement then pulls towards rotations
     /// on the rest pose they were predicted for; a new shipped network moves this solver's
-    /// figures too, docs/benchmarks.md), each joint with the CMU ASF's degrees of freedom, within the ranges CMU's own solutions
-    /// use ([`cmu_asf_dofs`], [`CmuLimits::Solved`]: the ASF's `limits` keep a 135_02 forearm
-    /// from reaching its wrist markers; docs/benchmarks.md), and the
-    /// wrists calibrated and held near the mean of their markers ([`CMU_WRIST_CENTRES`];
-    /// [`KinematicSolver::without_joint_centres`] for the template's forearms); the
-    /// joints that skeleton never rotates (no degrees of freedom in the ASF, and the clavicles,
-    /// which CMU's solutions never turn) stay still.
+    /// figures too, docs/benchmarks.md), each joint with the CMU ASF's degrees of freedom,
+    /// within the ranges CMU's own solutions use ([`cmu_asf_dofs`], [`CmuLimits::Solved`]: the
+    /// ASF's `limits` keep a 135_02 forearm from reaching its wrist markers;
+    /// docs/benchmarks.md), and the wrists calibrated and held near the mean of their markers
+    /// ([`CMU_WRIST_CENTRES`]; [`KinematicSolver::without_joint_centres`] for the template's
+    /// forearms); the joints that skeleton never rotates (no degrees of freedom in the ASF, and
+    /// the clavicles, which CMU's solutions never turn) stay still.
     ///
     /// # Errors
     /// The shipped solver does not load (a damaged build).
