@@ -2,14 +2,15 @@
 //! `cargo run --release -p locap-eval --example bvh_vs_amc -- SOLVED.bvh (ASF AMC | TRUTH.bvh)`
 //! reads the BVH `locap solve` wrote (centimetres, the animation tools' Y-up), turns it back
 //! into the motion's own frame and compares it with CMU's AMC, or with the motion `locap synth`
-//! made the take from (`NAME.bvh`); it prints JPE (also with the roots aligned), the root's error, JOE, and each
-//! joint's JPE / JOE, worst first. Then how much of each joint's position error is a constant
+//! made the take from (`NAME.bvh`); it prints JPE (also with the roots aligned), the root's
+//! error, JOE, and each joint's JPE / JOE, worst first. Then how much of each joint's position error is a constant
 //! offset in its reference parent's frame (a skeleton or calibration difference: the joint
 //! centre sits elsewhere on its bone), and the JPE left with that offset removed.
 
-use locap_core::units::{y_up_to_z_up_rotation, z_up_to_tools_y_up_rotation};
-use locap_core::{LengthUnit, Motion, Vec3};
+use locap_core::units::y_up_to_z_up_rotation;
+use locap_core::{LengthUnit, Motion, UpAxis, Vec3};
 use locap_eval::solver::compare_motions;
+use locap_io::axes::motion_from_tools_y_up;
 use std::path::Path;
 
 /// `motion` without its first `frames` frames.
@@ -25,7 +26,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let usage = "usage: bvh_vs_amc SOLVED.bvh (ASF AMC | TRUTH.bvh)";
     let bvh = args.first().ok_or(usage)?;
     let solved = locap_io::bvh::read_bvh_path(Path::new(bvh), LengthUnit::Centimetre)?;
-    let solved = solved.rotated(y_up_to_z_up_rotation().inverse() * z_up_to_tools_y_up_rotation().inverse());
+    let solved = motion_from_tools_y_up(&solved, y_up_to_z_up_rotation(), UpAxis::Z);
     let reference = match &args[1..] {
         // The motion `locap synth` made a take from (its `NAME.bvh`: the motion's own frame).
         [truth] => locap_io::bvh::read_bvh_path(Path::new(truth), LengthUnit::Centimetre)?,

@@ -62,6 +62,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .collect::<Result<_, _>>()?;
     let network = locap_nn::shipped::solver(&Default::default())?;
     let template = KinematicSolver::cmu41()?;
+    let rotating = template.rotating();
     let solvers: Vec<KinematicSolver> = shares
         .iter()
         .map(|&w| {
@@ -82,7 +83,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let mut checks = format!("{}: residual mm, largest jump deg, wrists within 60 mm:", path.display());
         for k in &solvers {
             let (motion, report) = k.refine(&cleaned, take.frame_rate_hz(), &prior)?;
-            let (jump, _, over) = rotation_jumps(&motion, &template.rotating(), 20.0);
+            let (jump, _, over) = rotation_jumps(&motion, &rotating, 20.0);
             let wrists = wrists_within(&motion, cleaned.take(), 60.0).map_or(f64::NAN, |w| 100.0 * w.0);
             checks += &format!("  {:.1} {jump:.1} ({over} over 20) {wrists:.1}%", report.residual_rms_mm);
             motions.push(motion);
@@ -92,8 +93,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let n = take.frame_count() as f64;
         let mut line = format!("{}: JOE / JPE (root):", path.display());
         for (k, motion) in motions.iter().enumerate() {
-            let rotating = if k == 0 { network.meta.rotating.clone() } else { template.rotating() };
-            let c = compare_motions(motion, &reference, &rotating)?;
+            let joints = if k == 0 { &network.meta.rotating } else { &rotating };
+            let c = compare_motions(motion, &reference, joints)?;
             for (sum, v) in sums[k].iter_mut().zip([c.joe_deg, c.jpe_mm, c.jpe_root_aligned_mm, c.root_mm]) {
                 *sum += v * n;
             }

@@ -92,6 +92,13 @@ pub fn motion_to_tools_y_up(motion: &Motion, to_lab: Quat, lab_up: UpAxis) -> Mo
     motion.rotated(conversion_rotation(lab_up, UpAxis::Y) * to_lab)
 }
 
+/// The inverse of [`motion_to_tools_y_up`]: a motion read from the tools' Y-up frame (a BVH
+/// `locap solve` wrote) back in its own frame, for comparing with a reference solution or
+/// drawing over the lab's markers.
+pub fn motion_from_tools_y_up(motion: &Motion, to_lab: Quat, lab_up: UpAxis) -> Motion {
+    motion.rotated((conversion_rotation(lab_up, UpAxis::Y) * to_lab).inverse())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -117,5 +124,8 @@ mod tests {
         let to_lab = locap_core::units::y_up_to_z_up_rotation();
         let moved = motion_to_tools_y_up(&motion, to_lab, UpAxis::Z);
         assert!((moved.root_position_mm(0) - Vec3::new(1.0, 3.0, -2.0)).norm() < 1e-12);
+        let back = motion_from_tools_y_up(&moved, to_lab, UpAxis::Z);
+        assert!((back.root_position_mm(0) - motion.root_position_mm(0)).norm() < 1e-12);
+        assert!(back.local_rotations(0)[0].angle_to(&Quat::identity()) < 1e-12);
     }
 }

@@ -96,9 +96,10 @@ pub fn run(args: Args) -> Result<ExitCode> {
             Some(match args.motion_up {
                 // The viewer places Y-up data by CMU's convention: turn the tools' Y-up back
                 // to the lab and into that one.
-                MotionUp::Tools => motion.rotated(
-                    locap_core::units::y_up_to_z_up_rotation().inverse()
-                        * locap_core::units::z_up_to_tools_y_up_rotation().inverse(),
+                MotionUp::Tools => locap_io::axes::motion_from_tools_y_up(
+                    &motion,
+                    locap_core::units::y_up_to_z_up_rotation(),
+                    locap_core::UpAxis::Z,
                 ),
                 MotionUp::Y | MotionUp::Z => motion,
             })

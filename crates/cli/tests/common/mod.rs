@@ -27,9 +27,8 @@ pub fn shared_data() -> Option<PathBuf> {
 /// every joint counted.
 pub fn bvh_against_cmu(bvh: &Path, data: &Path, subject: &str, take: &str) -> locap_eval::solver::MotionComparison {
     let solved = locap_io::bvh::read_bvh_path(bvh, locap_core::LengthUnit::Centimetre).unwrap();
-    let tools_to_motion = locap_core::units::y_up_to_z_up_rotation().inverse()
-        * locap_core::units::z_up_to_tools_y_up_rotation().inverse();
-    let solved = solved.rotated(tools_to_motion);
+    let to_lab = locap_core::units::y_up_to_z_up_rotation();
+    let solved = locap_io::axes::motion_from_tools_y_up(&solved, to_lab, locap_core::UpAxis::Z);
     let asf = locap_io::asf_amc::read_asf_path(&data.join(format!("cmu-asfamc/{subject}/{subject}.asf"))).unwrap();
     let amc = data.join(format!("cmu-asfamc/{subject}/{take}.amc"));
     let reference = locap_io::asf_amc::read_amc_path(&amc, &asf, 120.0).unwrap();
