@@ -269,16 +269,25 @@ fn the_refinement_on_the_networks_skeleton_places_joints_closer() {
     let (template, default) = (refined_jpe(Some("0")), refined_jpe(None));
     eprintln!("02_01 refined JPE: template {template:.2} mm, default {default:.2} mm");
     assert!(default < template - 1.0, "default {default} mm against the template's {template} mm");
+    // The refused settings: the command fails and says why.
+    let refused = |extra: &[&std::ffi::OsStr]| -> String {
+        let out = locap()
+            .arg("eval")
+            .arg("--data")
+            .arg(&shards)
+            .arg("--models")
+            .arg(repo().join("models/solver-cmu41-v3.locapsv"))
+            .args(["--kinematic", "--refine"])
+            .args(extra)
+            .output()
+            .unwrap();
+        assert!(!out.status.success());
+        String::from_utf8_lossy(&out.stderr).into_owned()
+    };
     // A share outside 0 to 1 is refused, naming the option.
-    let out = locap()
-        .arg("eval")
-        .arg("--data")
-        .arg(&shards)
-        .arg("--models")
-        .arg(repo().join("models/solver-cmu41-v3.locapsv"))
-        .args(["--kinematic", "--refine", "--network-skeleton", "1.5"])
-        .output()
-        .unwrap();
-    assert!(!out.status.success());
-    assert!(String::from_utf8_lossy(&out.stderr).contains("--network-skeleton 1.5"));
+    assert!(refused(&["--network-skeleton".as_ref(), "1.5".as_ref()]).contains("--network-skeleton 1.5"));
+    // A layout's skeleton is the user's: the share does not apply, and saying it is refused
+    // rather than ignored.
+    let err = refused(&["--network-skeleton".as_ref(), "0.5".as_ref(), "--kinematic-layout".as_ref(), shards.as_ref()]);
+    assert!(err.contains("--network-skeleton") && err.contains("--kinematic-layout"), "{err}");
 }

@@ -71,8 +71,15 @@ pub struct Args {
     prior_window: Option<f64>,
     /// How far `--refine` moves the CMU template's bone offsets towards the skeleton the
     /// network predicted for each take, 0 (the template) to 1 (default:
-    /// `locap_nn::kinematic::BODY_NETWORK_SKELETON`).
-    #[arg(long, value_name = "SHARE", requires = "refine", help_heading = "Input")]
+    /// `locap_nn::kinematic::BODY_NETWORK_SKELETON`). The CMU body solver only: a layout's
+    /// skeleton is the user's, not moved.
+    #[arg(
+        long,
+        value_name = "SHARE",
+        requires = "refine",
+        conflicts_with = "kinematic_layout",
+        help_heading = "Input"
+    )]
     network_skeleton: Option<f64>,
     /// Write the results as JSON.
     #[arg(long, value_name = "FILE", help_heading = "Output")]
