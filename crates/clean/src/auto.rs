@@ -99,6 +99,12 @@
 //!   noise. Body-worn markers of the 41-marker set never qualify (the steadiest head
 //!   marker's third neighbour varies by 3.3 mm), and a 62-marker set's plates all do
 //!   (0.2-1.0 mm; 1.5 changed little, 2 took in the feet and was worse; docs/benchmarks.md).
+//!   Looser clusters count where they are set apart from the body
+//!   ([`AutoConfig::rigid_cluster_apart`]): a head cap's four markers keep their distances
+//!   to within 0.4-3.8 mm and to nothing else within 10 mm, so no other marker can say more
+//!   about one of them than the other three. The ratio (4) and the loosest third partner
+//!   (5 mm) were set from the caps' distances before measuring; another subject of the
+//!   62-marker set was the held-out check (docs/benchmarks.md).
 //! - The real gap's fill has no truth to check it against, so its samples are checked for
 //!   plausibility: a blended candidate's sample must keep the marker's distance to at least
 //!   half of its [`PLAUSIBILITY_NEIGHBOURS`] best neighbours captured there within what the
@@ -263,6 +269,17 @@ pub struct AutoConfig {
     /// plate): where all three are captured throughout a gap and its borders, the rigid fill
     /// alone fills it, exactly up to the markers' noise, whatever the trials measured (0: never).
     pub rigid_cluster_mm: f64,
+    /// A cluster looser than [`AutoConfig::rigid_cluster_mm`] still counts where it is set
+    /// apart from the rest of the body: its third partner's standard deviation is at most
+    /// [`AutoConfig::rigid_cluster_loose_mm`] and the fourth steadiest neighbour's at least
+    /// this many times that (a cap of four head markers: 0.4-3.8 mm within, 10-26 mm to
+    /// anything else; a foot whose three steadiest partners ride with it while the shin turns).
+    /// Worn on soft tissue or a cap, the four are rigid to within their noise, and no other
+    /// marker can tell more about where the fourth is. 0: the strict limit alone.
+    pub rigid_cluster_apart: f64,
+    /// The loosest third partner (standard deviation, mm) of a cluster set apart
+    /// ([`AutoConfig::rigid_cluster_apart`]).
+    pub rigid_cluster_loose_mm: f64,
     /// Whether distance-constrained smoothing ([`FillMethod::Distance`]) is a candidate (for
     /// interior gaps; it keeps EDM's fill at the take's edges).
     pub distance: bool,
@@ -311,6 +328,8 @@ impl Default for AutoConfig {
             neighbour_trials: 2,
             neighbour_weight: 0.25,
             rigid_cluster_mm: 1.0,
+            rigid_cluster_apart: 4.0,
+            rigid_cluster_loose_mm: 5.0,
             distance: true,
             distance_min_s: 0.1,
         }
@@ -796,20 +815,23 @@ impl Context<'_> {
     }
 
     /// Whether `marker` and its three steadiest neighbours form a rigid cluster
-    /// ([`AutoConfig::rigid_cluster_mm`]) whose other three are captured throughout `gap` and
-    /// its borders.
+    /// ([`AutoConfig::rigid_cluster_mm`], or looser but set apart from the rest of the body,
+    /// [`AutoConfig::rigid_cluster_apart`]) whose other three are captured throughout `gap`
+    /// and its borders.
     fn rides_a_rigid_cluster(&self, marker: usize, gap: Gap, edge: Edge) -> bool {
-        let limit = self.config.rigid_cluster_mm;
-        if limit <= 0.0 {
+        let config = &self.config;
+        if config.rigid_cluster_mm <= 0.0 {
             return false;
         }
-        let mut steadiest: Vec<(usize, f64)> =
-            self.ranked[marker].iter().copied().filter(|(_, v)| v.is_finite()).collect();
-        steadiest.sort_by(|a, b| a.1.total_cmp(&b.1));
-        steadiest.len() >= CLUSTER_PARTNERS
-            && steadiest[..CLUSTER_PARTNERS]
-                .iter()
-                .all(|(j, v)| v.sqrt() <= limit && self.captured_around(*j, gap, edge))
+        let mut spread_mm: Vec<(usize, f64)> =
+            self.ranked[marker].iter().filter(|(_, v)| v.is_finite()).map(|&(j, v)| (j, v.sqrt())).collect();
+        spread_mm.sort_by(|a, b| a.1.total_cmp(&b.1));
+        let Some(&(_, third)) = spread_mm.get(CLUSTER_PARTNERS - 1) else { return false };
+        let set_apart = config.rigid_cluster_apart > 0.0
+            && third <= config.rigid_cluster_loose_mm
+            && spread_mm.get(CLUSTER_PARTNERS).is_some_and(|&(_, fourth)| fourth >= config.rigid_cluster_apart * third);
+        (third <= config.rigid_cluster_mm || set_apart)
+            && spread_mm[..CLUSTER_PARTNERS].iter().all(|(j, _)| self.captured_around(*j, gap, edge))
     }
 
     /// Starts of the trial windows for `gap` of `marker`, nearest first.
@@ -1231,6 +1253,28 @@ mod tests {
         assert!(choice.trials > 0 && !choice.trial_rmse_mm.is_empty());
         let off = fill(&holed, &AutoConfig { rigid_cluster_mm: 0.0, ..AutoConfig::default() });
         assert_eq!(off.choices[0].weights.len(), 2, "{}", off.choices[0].method());
+    }
+
+    /// A cluster of four that wobbles by a few millimetres (a head cap), set apart from the
+    /// other markers that move tens of millimetres against it, is filled rigidly too; with
+    /// the strict limit alone it is left to the trials.
+    #[test]
+    fn a_cluster_set_apart_is_filled_by_the_rigid_fill_alone() {
+        let wobble = |f: usize, k: usize| {
+            let a = f as f64 * 0.07 + k as f64;
+            match k {
+                0 => [0.0; 3],
+                1..=3 => [3.0 * a.sin(), 3.0 * (1.3 * a).cos(), 3.0 * (0.7 * a).sin()],
+                _ => [60.0 * (0.3 * a).sin(), 40.0 * (0.2 * a).cos(), 0.0],
+            }
+        };
+        let truth = locap_testkit::rigid_cluster(900, 6, |i| format!("M{i}"), wobble);
+        let mut holed = truth.clone();
+        hide(&mut holed, 0, 300..360);
+        let out = fill(&holed, &AutoConfig::default());
+        assert_eq!(out.choices[0].weights, vec![(FillMethod::Rigid, 1.0)], "{}", out.choices[0].method());
+        let strict = fill(&holed, &AutoConfig { rigid_cluster_apart: 0.0, ..AutoConfig::default() });
+        assert_eq!(strict.choices[0].weights.len(), 2, "{}", strict.choices[0].method());
     }
 
     /// An edge gap is filled only where EDM's edge rules reach; unlabeled points not at all.

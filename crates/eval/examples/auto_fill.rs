@@ -7,8 +7,11 @@
 //!     [--seed 0] [--per-length 5] [--blend 2] [--trials 3] [--context 2] [--markers 10]
 //!     [--pca-markers 41] [--pca-context 30] [--pca-fit 500] [--interpolate 100] [--least-squares]
 //!     [--neighbour-trials 2] [--neighbour-weight 0.5] [--score pooled|mean|median]
-//!     [--rigid-cluster 1.0] [--no-distance]
+//!     [--rigid-cluster 1.0] [--apart 4] [--loose 5] [--no-distance]
 //! ```
+//!
+//! `--takes` also takes paths of one's own ending in `.c3d` (a take labeled by `locap label`
+//! and cut to a stretch where its markers are captured).
 //!
 //! Most constants of `AutoConfig::default` were chosen on CMU 85_12 with seeds other than 0;
 //! report the other takes (held out) at seed 0. The score, the neighbour weight and the
@@ -59,6 +62,8 @@ fn main() {
     set(get("--markers"), "--markers", &mut config.markers);
     set(get("--pca-markers"), "--pca-markers", &mut config.pca_markers);
     set(get("--rigid-cluster"), "--rigid-cluster", &mut config.rigid_cluster_mm);
+    set(get("--apart"), "--apart", &mut config.rigid_cluster_apart);
+    set(get("--loose"), "--loose", &mut config.rigid_cluster_loose_mm);
     if let Some(score) = get("--score") {
         config.score = match score.as_str() {
             "pooled" => auto::TrialScore::Pooled,
@@ -70,7 +75,13 @@ fn main() {
     eprintln!("{config:?}, {protocol:?}");
     let mut takes = Vec::new();
     for name in get("--takes").unwrap_or_else(|| "85_02,85_12,135_02,hdm05".into()).split(',') {
-        let Some(path) = locap_testkit::shared_file(&path_of(name)) else { return };
+        // A path of one's own (a take labeled by `locap label`, say) as it is.
+        let path = if name.ends_with(".c3d") {
+            std::path::PathBuf::from(name)
+        } else {
+            let Some(path) = locap_testkit::shared_file(&path_of(name)) else { return };
+            path
+        };
         let take = locap_io::c3d::read_path(&path).and_then(|c| c.to_take()).unwrap_or_else(|e| panic!("{e}"));
         takes.push((name.to_string(), take));
     }
