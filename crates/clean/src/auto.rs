@@ -96,8 +96,8 @@
 //!   [`AutoConfig::rigid_cluster_mm`]) and are captured throughout the gap, the rigid fill
 //!   alone fills it. Physics makes it exact there, and the trials, which on a short take
 //!   see few windows and at the gap's own frames a plate with a partner hidden, only add
-//!   noise. Body-worn markers of the 41-marker set never qualify (the steadiest head
-//!   marker's third neighbour varies by 3.3 mm), and a 62-marker set's plates all do
+//!   noise. Under that limit, body-worn markers of the 41-marker set never qualify (the
+//!   steadiest head marker's third neighbour varies by 3.3 mm), and a 62-marker set's plates all do
 //!   (0.2-1.0 mm; 1.5 changed little, 2 took in the feet and was worse; docs/benchmarks.md).
 //!   Looser clusters count where they are set apart from the body
 //!   ([`AutoConfig::rigid_cluster_apart`]): a head cap's four markers keep their distances

@@ -2,9 +2,10 @@
 //!
 //! Used twice in cleaning: EDM aligns its MDS embedding onto the visible neighbours (paper
 //! section 3.1, "Rotation Orthogonal Procrustes Problem", closed form by SVD), and the rigid
-//! baseline carries a marker along with three neighbours. nalgebra provides the SVD; the
-//! few lines around it are ours because no crate offers the reflection handling both uses
-//! need.
+//! baseline carries a marker along with three neighbours. The reflection handling is ours
+//! because no crate offers what both uses need, and so is the 3x3 SVD (`svd3`, nalgebra's
+//! method with a Jacobi eigen-solver in place of its general one, which took a fifth of
+//! `locap clean`'s time in these alignments; docs/benchmarks.md).
 
 use locap_core::Vec3;
 use nalgebra::{Matrix3, Rotation3};
@@ -109,7 +110,7 @@ impl Kabsch {
     }
 }
 
-/// Sweeps of [`symmetric_eigen3`] at most; a 3x3 matrix converges in 4-6.
+/// Sweeps of [`symmetric_eigenvectors3`] at most; a 3x3 matrix converges in 4-6.
 const JACOBI_SWEEPS: usize = 32;
 
 /// The SVD `h = U diag(sv) V^T` of a 3x3 matrix, singular values in decreasing order: the
@@ -121,9 +122,9 @@ fn svd3(h: &Matrix3<f64>) -> Option<(Matrix3<f64>, [f64; 3], Matrix3<f64>)> {
     if !h.iter().all(|x| x.is_finite()) {
         return None;
     }
-    let (_, mut v) = symmetric_eigen3(h.transpose() * h);
+    let mut v = symmetric_eigenvectors3(h.transpose() * h);
     let mut b = h * v;
-    // Columns by decreasing norm, each swap negating one column to keep V's handedness.
+    // Columns by decreasing norm (the QR's diagonal then decreases), V kept a rotation.
     let mut order = [0, 1, 2];
     order.sort_by(|&x, &y| b.column(y).norm_squared().total_cmp(&b.column(x).norm_squared()));
     let (v0, b0) = (v, b);
@@ -159,9 +160,9 @@ fn any_normal(u: &Vec3) -> Vec3 {
     (axis - u * u.dot(&axis)).normalize()
 }
 
-/// Eigen-decomposition of a symmetric 3x3 matrix by cyclic Jacobi rotations: the eigenvalues
-/// and the eigenvectors as the columns of a rotation, in no particular order.
-fn symmetric_eigen3(m: Matrix3<f64>) -> (Vec3, Matrix3<f64>) {
+/// The eigenvectors of a symmetric 3x3 matrix by cyclic Jacobi rotations, as the columns of a
+/// rotation, in no particular order.
+fn symmetric_eigenvectors3(m: Matrix3<f64>) -> Matrix3<f64> {
     // Plain arrays: with constant indices the compiler keeps every entry in registers.
     let mut a =
         [[m[(0, 0)], m[(0, 1)], m[(0, 2)]], [m[(1, 0)], m[(1, 1)], m[(1, 2)]], [m[(2, 0)], m[(2, 1)], m[(2, 2)]]];
@@ -176,11 +177,10 @@ fn symmetric_eigen3(m: Matrix3<f64>) -> (Vec3, Matrix3<f64>) {
         rotate::<0, 2, 1>(&mut a, &mut v);
         rotate::<1, 2, 0>(&mut a, &mut v);
     }
-    let vectors = Matrix3::new(v[0][0], v[0][1], v[0][2], v[1][0], v[1][1], v[1][2], v[2][0], v[2][1], v[2][2]);
-    (Vec3::new(a[0][0], a[1][1], a[2][2]), vectors)
+    Matrix3::new(v[0][0], v[0][1], v[0][2], v[1][0], v[1][1], v[1][2], v[2][0], v[2][1], v[2][2])
 }
 
-/// One Jacobi rotation of [`symmetric_eigen3`]: the rotation in the `(P, Q)` plane that zeroes
+/// One Jacobi rotation of [`symmetric_eigenvectors3`]: the rotation in the `(P, Q)` plane that zeroes
 /// `a[P][Q]` (Numerical Recipes 11.1), applied to `a` (`R` the third index) and accumulated in
 /// `v`'s columns.
 fn rotate<const P: usize, const Q: usize, const R: usize>(a: &mut [[f64; 3]; 3], v: &mut [[f64; 3]; 3]) {
