@@ -70,16 +70,28 @@
 //! [`crate::FillMethod::PcaAligned`] runs it; the per-gap choice ([`crate::auto`]) uses it as
 //! its PCA candidate.
 //!
+//! # Meeting the borders (locap's, not the paper's)
+//! The published method does not use the samples either side of a gap, so its fill jumps
+//! at each border by its reconstruction error there, and its error does not shrink on short
+//! gaps as interpolation's does. With [`PcaConfig::border_fade_s`] set, [`fill_marker`] also
+//! reconstructs each border sample as if it were missing, from the predictors of the gap
+//! frame next to it (they are hidden there with it, so the border sees the gap's
+//! neighbourhood), and adds the border errors to the fill: linearly weighted across the
+//! gap as interpolation weighs its borders, and each faded with `exp(-t / fade)` over the
+//! time `t` from its border, so a short gap is corrected throughout and the middle of a long
+//! one keeps the reconstruction (an error a second away says little about this frame). A
+//! gap with one border carries that border's error, faded. Off by default; the per-gap
+//! choice ([`crate::auto`]) turns it on for its PCA candidate.
+//!
 //! # Left out
 //! Strategy R1 (all gaps reconstructed at once with the smallest distance as weight) and any
 //! iteration: the published method is a single projection per frame, not an iterative
-//! imputation (project, replace the missing entries, repeat), nor does it blend with the
-//! samples either side of a gap, so its error does not shrink on short gaps as
-//! interpolation's does.
+//! imputation (project, replace the missing entries, repeat).
 
-use super::{linear, put};
+use super::{borders, linear, put};
 use crate::Filled;
 use crate::procrustes::{self, RigidTransform};
+use locap_core::gaps::{Gap, gaps_of};
 use locap_core::{Take, Vec3};
 use nalgebra::{DMatrix, Rotation3, SymmetricEigen};
 use serde::{Deserialize, Serialize};
@@ -125,6 +137,13 @@ pub struct PcaConfig {
     /// Frame the coordinates are decomposed in (the paper's: translated by the mean trajectory).
     #[serde(default)]
     pub frame: PcaFrame,
+    /// Where set, [`fill_marker`] makes each gap's fill meet the captured samples at its
+    /// borders: the error the reconstruction makes at a border sample, predicted from the
+    /// gap's predictors as if missing, is removed from the fill, fading with this time
+    /// constant in seconds (see "Meeting the borders" in the module doc). `None`, the paper's
+    /// method, leaves the jump at the borders.
+    #[serde(default)]
+    pub border_fade_s: Option<f64>,
 }
 
 /// The moving frame PCA sees each frame's markers in.
@@ -155,6 +174,7 @@ impl Default for PcaConfig {
             distal_threshold: 0.5,
             min_cumulative_sv: 0.99,
             frame: PcaFrame::Translated,
+            border_fade_s: None,
         }
     }
 }
@@ -180,7 +200,17 @@ pub fn fill(take: &Take, config: &PcaConfig) -> Filled {
 /// Fills the gaps of `marker` alone within frames `only`, exactly as [`fill`] fills them;
 /// every other sample stays as captured. The per-gap fill of [`crate::auto`] needs one gap's
 /// reconstruction, and the cost of [`fill`] grows with the number of gapped markers.
+///
+/// With [`PcaConfig::border_fade_s`] set, each gap's fill is also made to meet its borders.
 pub fn fill_marker(take: &Take, marker: usize, only: Range<usize>, config: &PcaConfig) -> Filled {
+    match config.border_fade_s {
+        Some(fade_s) if marker < take.marker_count() => fill_marker_meeting_borders(take, marker, only, config, fade_s),
+        _ => fill_marker_alone(take, marker, only, config),
+    }
+}
+
+/// [`fill_marker`] as the paper reconstructs: each gap on its own, without its borders.
+fn fill_marker_alone(take: &Take, marker: usize, only: Range<usize>, config: &PcaConfig) -> Filled {
     let frames = take.frame_count();
     let mut out = Filled::unchanged(take);
     if marker >= take.marker_count() || !(0..frames).any(|f| take.is_valid(f, marker)) {
@@ -192,6 +222,73 @@ pub fn fill_marker(take: &Take, marker: usize, only: Range<usize>, config: &PcaC
     }
     let context = Context { take, prefill: OnceLock::new(), gapped: &gapped, config, only };
     fill_marker_into(&context, &mean_distances(take, marker), marker, &mut out);
+    out
+}
+
+/// [`fill_marker`] with every gap of `marker` within `only` made to meet its borders: the
+/// border samples are hidden too (with the markers missing in the gap's adjacent frame, so
+/// they are predicted from the gap's own predictors), the reconstruction's error there is
+/// measured, and each gap's fill is corrected by the errors of its borders, each weighted
+/// linearly across the gap and faded by `exp(-t / fade_s)` with the time `t` from its border.
+fn fill_marker_meeting_borders(
+    take: &Take,
+    marker: usize,
+    only: Range<usize>,
+    config: &PcaConfig,
+    fade_s: f64,
+) -> Filled {
+    let frames = take.frame_count();
+    let first = only.start.min(frames);
+    let last = only.end.min(frames);
+    let gaps: Vec<Gap> = gaps_of((first..last).map(|f| take.is_valid(f, marker)))
+        .into_iter()
+        .map(|g| Gap { start: g.start + first, len: g.len })
+        .collect();
+    // Each gap's borders: (border frame, adjacent gap frame).
+    let mut border_frames: Vec<(usize, usize)> = Vec::new();
+    for gap in &gaps {
+        let (before, after) = borders(gap.start, gap.end(), frames);
+        border_frames.extend(before.map(|b| (b, gap.start)));
+        border_frames.extend(after.map(|b| (b, gap.end() - 1)));
+    }
+    let mut hidden = take.clone();
+    for &(b, adjacent) in &border_frames {
+        for j in 0..take.marker_count() {
+            if j == marker || !take.is_valid(adjacent, j) {
+                // In range by construction: `b` is a frame of the take, `j` one of its markers.
+                let _ = hidden.set_position_mm(b, j, None);
+            }
+        }
+    }
+    let widened = first.saturating_sub(1)..(last + 1).min(frames);
+    let predicted = fill_marker_alone(&hidden, marker, widened, config);
+    let mut out = Filled::unchanged(take);
+    let m = take.marker_count();
+    let predicted_at = |f: usize| {
+        if predicted.filled[f * m + marker] { predicted.take.position_mm(f, marker) } else { None }
+    };
+    let fade_frames = fade_s * take.frame_rate_hz();
+    for gap in &gaps {
+        let (before, after) = borders(gap.start, gap.end(), frames);
+        // The reconstruction's error at a border, where both it and the capture exist.
+        let error_at = |b: Option<usize>| -> Option<Vec3> { Some(take.position_mm(b?, marker)? - predicted_at(b?)?) };
+        let (e0, e1) = (error_at(before), error_at(after));
+        let span = (gap.len + 1) as f64;
+        for f in gap.start..gap.end() {
+            let Some(p) = predicted_at(f) else { continue };
+            let from_start = (f + 1 - gap.start) as f64;
+            let from_end = (gap.end() - f) as f64;
+            // One border alone carries its error with the fade; two share it linearly too.
+            let (w0, w1) = match (e0, e1) {
+                (Some(_), Some(_)) => (from_end / span, from_start / span),
+                _ => (1.0, 1.0),
+            };
+            let fade = |t: f64| if fade_frames > 0.0 { (-t / fade_frames).exp() } else { 0.0 };
+            let correction = e0.map_or(Vec3::zeros(), |e| e * (w0 * fade(from_start)))
+                + e1.map_or(Vec3::zeros(), |e| e * (w1 * fade(from_end)));
+            put(&mut out, f, marker, p + correction);
+        }
+    }
     out
 }
 
@@ -537,6 +634,42 @@ mod tests {
         let lin = mean_error(&lin, &truth, 0, 300..420);
         assert!(pca < 1.0 && pca < lin / 20.0, "pca {pca} mm, linear {lin} mm");
         assert!(mean_error(&out, &truth, 5, 0..50) < 1.0);
+    }
+
+    /// Marker 0 of [`low_rank`] with a slow wobble of its own, which no component of the
+    /// other markers explains: the paper's reconstruction is off by the wobble everywhere.
+    fn wobbling(frames: usize) -> Take {
+        let mut take = low_rank(frames);
+        for f in 0..frames {
+            let p = take.position_mm(f, 0).unwrap() + Vec3::new(0.0, 20.0 * (f as f64 * 0.01).sin(), 0.0);
+            take.set_position_mm(f, 0, Some(p)).unwrap();
+        }
+        take
+    }
+
+    #[test]
+    fn a_gap_meets_its_borders_and_a_long_one_keeps_the_reconstruction_inside() {
+        let truth = wobbling(1000);
+        let mut holed = truth.clone();
+        hide(&mut holed, 0, (150..162).chain(400..700));
+        let paper = fill_marker(&holed, 0, 0..1000, &PcaConfig::default());
+        let config = PcaConfig { border_fade_s: Some(0.5), ..PcaConfig::default() };
+        let met = fill_marker(&holed, 0, 0..1000, &config);
+        assert_eq!(check_mask(&holed, &met), 12 + 300);
+        let (before, after) = (mean_error(&paper, &truth, 0, 150..162), mean_error(&met, &truth, 0, 150..162));
+        assert!(before > 5.0 && after < before / 10.0, "short gap: paper {before} mm, met {after} mm");
+        // Next to the long gap's borders the fill carries on from the captured samples...
+        for f in [400, 699] {
+            let (before, after) = (mean_error(&paper, &truth, 0, f..f + 1), mean_error(&met, &truth, 0, f..f + 1));
+            assert!(before > 5.0 && after < 1.0, "frame {f}: paper {before} mm, met {after} mm");
+        }
+        // ...and 1.5 s (three fade constants) inside it the reconstruction is the paper's.
+        let jump = |f: usize, border: usize| {
+            (truth.position_mm(border, 0).unwrap() - paper.take.position_mm(f, 0).unwrap()).norm()
+        };
+        let largest = jump(400, 399).max(jump(699, 700));
+        let middle = (met.take.position_mm(550, 0).unwrap() - paper.take.position_mm(550, 0).unwrap()).norm();
+        assert!(largest > 5.0 && middle < 0.1 * largest, "middle {middle} mm off the paper's, jumps {largest} mm");
     }
 
     #[test]
