@@ -140,8 +140,8 @@ pub struct PcaConfig {
     /// Where set, [`fill_marker`] makes each gap's fill meet the captured samples at its
     /// borders: the error the reconstruction makes at a border sample, predicted from the
     /// gap's predictors as if missing, is removed from the fill, fading with this time
-    /// constant in seconds (see "Meeting the borders" in the module doc). `None`, the paper's
-    /// method, leaves the jump at the borders.
+    /// constant in seconds (see "Meeting the borders" in the module doc). `None` (or a
+    /// constant that is not positive), the paper's method, leaves the jump at the borders.
     #[serde(default)]
     pub border_fade_s: Option<f64>,
 }
@@ -204,7 +204,11 @@ pub fn fill(take: &Take, config: &PcaConfig) -> Filled {
 /// With [`PcaConfig::border_fade_s`] set, each gap's fill is also made to meet its borders.
 pub fn fill_marker(take: &Take, marker: usize, only: Range<usize>, config: &PcaConfig) -> Filled {
     match config.border_fade_s {
-        Some(fade_s) if marker < take.marker_count() => fill_marker_meeting_borders(take, marker, only, config, fade_s),
+        // A fade that is not positive corrects nothing: the paper's fill, not a copy of it
+        // with the border samples hidden.
+        Some(fade_s) if fade_s > 0.0 && marker < take.marker_count() => {
+            fill_marker_meeting_borders(take, marker, only, config, fade_s)
+        }
         _ => fill_marker_alone(take, marker, only, config),
     }
 }
@@ -283,7 +287,7 @@ fn fill_marker_meeting_borders(
                 (Some(_), Some(_)) => (from_end / span, from_start / span),
                 _ => (1.0, 1.0),
             };
-            let fade = |t: f64| if fade_frames > 0.0 { (-t / fade_frames).exp() } else { 0.0 };
+            let fade = |t: f64| (-t / fade_frames).exp();
             let correction = e0.map_or(Vec3::zeros(), |e| e * (w0 * fade(from_start)))
                 + e1.map_or(Vec3::zeros(), |e| e * (w1 * fade(from_end)));
             put(&mut out, f, marker, p + correction);
