@@ -987,11 +987,8 @@ impl Context<'_> {
             // Not a candidate: the per-gap choice does not recurse.
             FillMethod::Auto => return vec![None; range.len()],
         };
-        let m = window.take.marker_count();
         // The range's frames are consecutive in every window.
-        (first..first + range.len())
-            .map(|k| if filled.filled[k * m] { filled.take.position_mm(k, 0) } else { None })
-            .collect()
+        (first..first + range.len()).map(|k| filled.computed(k, 0)).collect()
     }
 
     /// The sub-take of `markers` (the gap's marker first) at `frames` (increasing), with

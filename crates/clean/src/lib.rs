@@ -61,7 +61,7 @@ pub mod stage;
 pub mod swaps;
 
 pub use filler::{FillError, Filler};
-use locap_core::Take;
+use locap_core::{Take, Vec3};
 use serde::{Deserialize, Serialize};
 pub use stage::{CleanConfig, Cleaned, MarkerReport, clean, clean_with};
 
@@ -138,6 +138,17 @@ impl Filled {
     /// Starts from `take` with nothing filled.
     pub fn unchanged(take: &Take) -> Filled {
         Filled { take: take.clone(), filled: vec![false; take.validity().len()] }
+    }
+
+    /// The sample the method computed at `frame` for `marker`; `None` where it computed none
+    /// (captured, or left missing).
+    pub fn computed(&self, frame: usize, marker: usize) -> Option<Vec3> {
+        let m = self.take.marker_count();
+        if marker < m && self.filled.get(frame * m + marker).copied().unwrap_or(false) {
+            self.take.position_mm(frame, marker)
+        } else {
+            None
+        }
     }
 
     /// Number of computed samples.

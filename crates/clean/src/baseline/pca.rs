@@ -248,38 +248,39 @@ fn fill_marker_meeting_borders(
         .into_iter()
         .map(|g| Gap { start: g.start + first, len: g.len })
         .collect();
-    // Each gap's borders: (border frame, adjacent gap frame).
-    let mut border_frames: Vec<(usize, usize)> = Vec::new();
-    for gap in &gaps {
-        let (before, after) = borders(gap.start, gap.end(), frames);
-        border_frames.extend(before.map(|b| (b, gap.start)));
-        border_frames.extend(after.map(|b| (b, gap.end() - 1)));
-    }
+    // Each gap's borders, and at each the gap frame next to it.
+    let bordered: Vec<(Gap, Option<usize>, Option<usize>)> = gaps
+        .into_iter()
+        .map(|gap| {
+            let (before, after) = borders(gap.start, gap.end(), frames);
+            (gap, before, after)
+        })
+        .collect();
     let mut hidden = take.clone();
-    for &(b, adjacent) in &border_frames {
-        for j in 0..take.marker_count() {
-            if j == marker || !take.is_valid(adjacent, j) {
-                // In range by construction: `b` is a frame of the take, `j` one of its markers.
-                let _ = hidden.set_position_mm(b, j, None);
+    for (gap, before, after) in &bordered {
+        for (b, adjacent) in [before.map(|b| (b, gap.start)), after.map(|b| (b, gap.end() - 1))].into_iter().flatten() {
+            for j in 0..take.marker_count() {
+                if j == marker || !take.is_valid(adjacent, j) {
+                    // In range by construction: `b` is a frame of the take, `j` one of its markers.
+                    let _ = hidden.set_position_mm(b, j, None);
+                }
             }
         }
     }
     let widened = first.saturating_sub(1)..(last + 1).min(frames);
     let predicted = fill_marker_alone(&hidden, marker, widened, config);
     let mut out = Filled::unchanged(take);
-    let m = take.marker_count();
-    let predicted_at = |f: usize| {
-        if predicted.filled[f * m + marker] { predicted.take.position_mm(f, marker) } else { None }
-    };
     let fade_frames = fade_s * take.frame_rate_hz();
-    for gap in &gaps {
-        let (before, after) = borders(gap.start, gap.end(), frames);
+    let fade = |t: f64| (-t / fade_frames).exp();
+    for &(gap, before, after) in &bordered {
         // The reconstruction's error at a border, where both it and the capture exist.
-        let error_at = |b: Option<usize>| -> Option<Vec3> { Some(take.position_mm(b?, marker)? - predicted_at(b?)?) };
+        let error_at = |b: Option<usize>| -> Option<Vec3> {
+            Some(take.position_mm(b?, marker)? - predicted.computed(b?, marker)?)
+        };
         let (e0, e1) = (error_at(before), error_at(after));
         let span = (gap.len + 1) as f64;
         for f in gap.start..gap.end() {
-            let Some(p) = predicted_at(f) else { continue };
+            let Some(p) = predicted.computed(f, marker) else { continue };
             let from_start = (f + 1 - gap.start) as f64;
             let from_end = (gap.end() - f) as f64;
             // One border alone carries its error with the fade; two share it linearly too.
@@ -287,7 +288,6 @@ fn fill_marker_meeting_borders(
                 (Some(_), Some(_)) => (from_end / span, from_start / span),
                 _ => (1.0, 1.0),
             };
-            let fade = |t: f64| (-t / fade_frames).exp();
             let correction = e0.map_or(Vec3::zeros(), |e| e * (w0 * fade(from_start)))
                 + e1.map_or(Vec3::zeros(), |e| e * (w1 * fade(from_end)));
             put(&mut out, f, marker, p + correction);
