@@ -81,6 +81,9 @@ pub struct MarkerModel {
     centres: Vec<JointCentre>,
     /// Joints whose rotation follows another's ([`MarkerModel::with_couplings`]).
     couplings: Vec<JointCoupling>,
+    /// Per joint: how hard a prior pose holds it, times [`IkConfig::prior`]
+    /// ([`MarkerModel::with_prior_weights`]; 1 unless given).
+    prior_weights: Vec<f64>,
 }
 
 /// A joint that turns as another does, scaled: a finger's distal interphalangeal joint flexes
@@ -194,7 +197,9 @@ impl MarkerModel {
         }
         let moving = (0..skeleton.len()).filter(|&j| !skeleton.joints()[j].is_end_site).collect();
         let dofs = vec![JointDofs::Free; skeleton.len()];
+        let prior_weights = vec![1.0; skeleton.len()];
         Ok(MarkerModel {
+            prior_weights,
             skeleton,
             attachments,
             moving,
@@ -251,6 +256,35 @@ impl MarkerModel {
         }
         self.centres = centres;
         Ok(self)
+    }
+
+    /// The same model with each joint held towards a prior pose ([`IkConfig::prior`]) by its own
+    /// weight, times the config's (one entry per skeleton joint; the root's is unused): a
+    /// network's answer can be trusted more where the markers split a motion between joints
+    /// ambiguously (a spine bending over three joints) than where they see it.
+    ///
+    /// # Errors
+    /// Not one entry per joint, or a weight that is negative or not finite.
+    pub fn with_prior_weights(mut self, weights: Vec<f64>) -> Result<MarkerModel, LabelError> {
+        if weights.len() != self.skeleton.len() || weights.iter().any(|w| !(w.is_finite() && *w >= 0.0)) {
+            return Err(LabelError::Config(format!(
+                "{} prior weights for a skeleton of {} joints, or one negative or not finite",
+                weights.len(),
+                self.skeleton.len()
+            )));
+        }
+        self.prior_weights = weights;
+        Ok(self)
+    }
+
+    /// Per joint: its weight towards a prior pose ([`MarkerModel::with_prior_weights`]).
+    pub fn prior_weights(&self) -> &[f64] {
+        &self.prior_weights
+    }
+
+    /// The prior's weight on pose parameter `k` (a rotation vector component of a moving joint).
+    fn prior_weight_of(&self, k: usize) -> f64 {
+        self.prior_weights[self.moving[(k - 3) / 3]]
     }
 
     /// The same model with each joint's rotational freedom (one entry per skeleton joint; the
@@ -607,7 +641,8 @@ impl PoseProblem<'_> {
         }
         if let Some(prior) = self.prior {
             // Every block but the root's (the first).
-            let off: f64 = (6..theta.len()).map(|k| (theta[k] - prior[k]).powi(2)).sum();
+            let off: f64 =
+                (6..theta.len()).map(|k| self.model.prior_weight_of(k) * (theta[k] - prior[k]).powi(2)).sum();
             energy += self.config.prior * off;
         }
         energy
@@ -770,8 +805,8 @@ impl PoseProblem<'_> {
             }
         }
         if let Some(prior) = self.prior {
-            let w = self.config.prior.sqrt();
             for k in 6..n {
+                let w = (self.config.prior * model.prior_weight_of(k)).sqrt();
                 r[rows_prior + k - 6] = w * (theta[k] - prior[k]);
                 jac[(rows_prior + k - 6, k)] = w;
             }
@@ -1791,8 +1826,11 @@ pub(crate) mod tests {
     #[test]
     fn residuals_are_the_energy_and_the_jacobian_its_derivative() {
         // The forearm follows the upper arm (a coupling's rows are checked too).
+        // The prior holds each joint by its own weight (rows checked too).
         let model = hinged_arm()
             .with_couplings(vec![JointCoupling { joint: 2, leader: 1, ratio: 0.6 }])
+            .unwrap()
+            .with_prior_weights(vec![1.0, 4.0, 0.5, 1.0])
             .unwrap()
             .in_lab(MarkerModel::y_up_in_z_up_lab());
         let tracker = PoseTracker::new(model.clone(), IkConfig::default(), 60.0);
@@ -2058,6 +2096,16 @@ pub(crate) mod tests {
             assert!(with.poses[f].0[1].angle_to(&prior[f][1]).to_degrees() < 1.0, "frame {f}: upper arm");
         }
         assert!(solve_sequence_with_prior(model, &frames, 60.0, &config, Some(&prior[1..])).is_err());
+    }
+
+    #[test]
+    fn prior_weights_are_one_per_joint_and_not_negative() {
+        let model = arm_model();
+        assert_eq!(model.prior_weights(), [1.0; 4]);
+        assert!(model.clone().with_prior_weights(vec![1.0; 3]).is_err());
+        assert!(model.clone().with_prior_weights(vec![1.0, -1.0, 1.0, 1.0]).is_err());
+        assert!(model.clone().with_prior_weights(vec![1.0, f64::NAN, 1.0, 1.0]).is_err());
+        assert_eq!(model.with_prior_weights(vec![1.0, 0.0, 3.0, 1.0]).unwrap().prior_weights(), [1.0, 0.0, 3.0, 1.0]);
     }
 
     #[test]

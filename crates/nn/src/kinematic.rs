@@ -222,6 +222,18 @@ pub const REFINE_PRIOR: f64 = 3.0;
 /// networks but for one mixed result at 100 (docs/benchmarks.md).
 pub const BODY_REFINE_PRIOR: f64 = 30.0;
 
+/// The CMU spine joints the markers split a bend between ambiguously (one marker, T10, between
+/// the pelvis and the thorax's cluster).
+pub const BODY_SPINE: [&str; 3] = ["lowerback", "upperback", "thorax"];
+
+/// How much harder than [`BODY_REFINE_PRIOR`] the network's pose holds the [`BODY_SPINE`] joints
+/// in [`KinematicSolver::refine`]: refined at the body's pull, the spine ends further from the
+/// truth than the network alone. Of 1, 3, 10 and 30 on the validation takes (as for
+/// [`BODY_REFINE_PRIOR`]), 3 gained JOE (0.06 degrees over the constrained joints) at 0.02 mm of
+/// JPE; 10 and 30 gained a little more JOE at 0.1-0.2 mm of JPE (docs/benchmarks.md, "The
+/// network's pull per joint").
+pub const BODY_SPINE_REFINE_FACTOR: f64 = 3.0;
+
 /// [`KinematicSolver::network_skeleton`] of the CMU body solver: halfway from the template to
 /// the skeleton the network predicted for the take. The subject calibration fits bone lengths
 /// (an overall scale, the wrist centres) but not where each joint centre sits on its bone, and
@@ -443,7 +455,26 @@ impl KinematicSolver {
             .collect();
         let mut solver = KinematicSolver::new(&Layout::cmu41(), skeleton, Some(dofs))?;
         solver.refine_prior = BODY_REFINE_PRIOR;
-        Ok(solver)
+        let spine: Vec<(&str, f64)> = BODY_SPINE.iter().map(|j| (*j, BODY_SPINE_REFINE_FACTOR)).collect();
+        solver.with_refine_prior_factors(&spine)
+    }
+
+    /// The same solver with the network's pose in [`KinematicSolver::refine`] holding each named
+    /// joint `factor` times [`KinematicSolver::refine_prior`] (the others: 1 times).
+    ///
+    /// # Errors
+    /// A joint the skeleton lacks, or a factor that is negative or not finite.
+    pub fn with_refine_prior_factors(mut self, factors: &[(&str, f64)]) -> Result<KinematicSolver, NnError> {
+        let skeleton = self.model.skeleton();
+        let mut weights = self.model.prior_weights().to_vec();
+        for (name, factor) in factors {
+            let j = skeleton
+                .index_of(name)
+                .ok_or_else(|| NnError::Kinematic(format!("refine prior: the skeleton has no joint {name:?}")))?;
+            weights[j] = *factor;
+        }
+        self.model = self.model.with_prior_weights(weights).map_err(config_error)?;
+        Ok(self)
     }
 
     /// The same solver with its joint centres left to the markers alone: the template's bone
@@ -651,6 +682,7 @@ impl KinematicSolver {
         solver.refine_prior = self.refine_prior;
         solver.prior_half_window_s = self.prior_half_window_s;
         solver.network_skeleton = 0.0;
+        solver.model = solver.model.with_prior_weights(self.model.prior_weights().to_vec()).map_err(config_error)?;
         Ok(solver)
     }
 
@@ -768,6 +800,15 @@ mod tests {
         assert!((offset(&moved, other) - offset(&solver, other)).norm() < 1e-9);
         assert_eq!((moved.refine_prior, moved.network_skeleton), (7.0, 0.0));
         assert_eq!(moved.rotating(), solver.rotating());
+        // The spine's harder pull moves with it.
+        let weights = moved.model.prior_weights();
+        assert_eq!(weights, solver.model.prior_weights());
+        for (j, joint) in template.joints().iter().enumerate() {
+            let expected = if BODY_SPINE.contains(&joint.name.as_str()) { BODY_SPINE_REFINE_FACTOR } else { 1.0 };
+            assert_eq!(weights[j], expected, "{}", joint.name);
+        }
+        assert!(solver.clone().with_refine_prior_factors(&[("nowhere", 2.0)]).is_err());
+        assert!(solver.clone().with_refine_prior_factors(&[("lhand", -2.0)]).is_err());
         // Solvers not built as the CMU body solver have nothing to rebuild: not moved.
         let layout = Layout::from_toml(include_str!("../../synth/layouts/hand-left.toml")).unwrap();
         assert!(KinematicSolver::from_layout(&layout).unwrap().cmu_rotating.is_none());
