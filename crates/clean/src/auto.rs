@@ -261,6 +261,10 @@ pub struct AutoConfig {
     pub edm_neighbours: usize,
     /// How neighbours are ranked (EDM, rigid and the sub-takes' marker choice).
     pub selection: Selection,
+    /// Share of a pair's distance variance over the whole take added to its variance within
+    /// the sub-take when EDM and the rigid fills rank neighbours there
+    /// ([`Selection::Variance`]; 0: the sub-take's alone).
+    pub take_variance_share: f64,
     /// Farthest a trial window may lie from the real gap, in seconds.
     pub search_s: f64,
     /// Seed of the trial windows' jitter.
@@ -338,6 +342,7 @@ impl Default for AutoConfig {
             pca_markers: usize::MAX,
             edm_neighbours: 6,
             selection: Selection::Variance,
+            take_variance_share: 10.0,
             search_s: 60.0,
             seed: 15,
             neighbour_trials: 2,
@@ -472,6 +477,9 @@ struct Context<'a> {
     config: &'a AutoConfig,
     /// Neighbour ranking of every marker over the whole take, with distance variances.
     ranked: Vec<Vec<(usize, f64)>>,
+    /// The same variances by pair: `variance[i * M + j]`, mm^2 (infinite: seen together too
+    /// rarely).
+    variance: Vec<f64>,
     /// Markers nearest first (empty when PCA sees every marker).
     nearest: Vec<Vec<usize>>,
     /// Context frames each side of a gap (before the gap's own length is taken into account).
@@ -504,9 +512,16 @@ impl<'a> Context<'a> {
                 if gapped { plausible_distances(take, i, &ranked[i]) } else { Vec::new() }
             })
             .collect();
+        let mut variance = vec![f64::INFINITY; m * m];
+        for (i, list) in ranked.iter().enumerate() {
+            for &(j, v) in list {
+                variance[i * m + j] = v;
+            }
+        }
         Context {
             take,
             config,
+            variance,
             ranked,
             nearest: if config.pca_markers < m { neighbours::rank(take, Selection::MeanDistance) } else { Vec::new() },
             context: ((config.context_s * take.frame_rate_hz()).round() as usize).max(1),
@@ -522,6 +537,8 @@ struct Window {
     take: Take,
     /// `frames[k]` is the take's frame at the sub-take's frame `k`.
     frames: Vec<usize>,
+    /// `markers[k]` is the take's marker at the sub-take's marker `k`.
+    markers: Vec<usize>,
 }
 
 /// The sub-takes one fill of a frame range runs on: for the local candidates and for PCA.
@@ -530,6 +547,9 @@ struct Windows {
     wide: Option<Window>,
     /// EDM's fill of `local`, shared by the EDM candidate and the distance fill it starts.
     edm: std::cell::OnceCell<Filled>,
+    /// The neighbour ranking in `local` ([`Context::window_ranking`]), shared by EDM and the
+    /// rigid fills.
+    ranked: std::cell::OnceCell<Vec<Vec<(usize, f64)>>>,
     /// The frames filled, in the take.
     range: Range<usize>,
 }
@@ -939,6 +959,7 @@ impl Context<'_> {
             local: self.window(local_frames, local, hidden),
             wide: self.window(wide_frames, wide, hidden),
             edm: std::cell::OnceCell::new(),
+            ranked: std::cell::OnceCell::new(),
             range,
         }
     }
@@ -951,7 +972,9 @@ impl Context<'_> {
         let Some(window) = window else { return vec![None; range.len()] };
         let Ok(first) = window.frames.binary_search(&range.start) else { return vec![None; range.len()] };
         let config = self.config;
-        let edm = || windows.edm.get_or_init(|| edm::fill(&window.take, config.edm_neighbours, config.selection));
+        let ranked = || windows.ranked.get_or_init(|| self.window_ranking(window));
+        let edm = || windows.edm.get_or_init(|| edm::fill_ranked(&window.take, config.edm_neighbours, ranked()));
+        let donors = || -> Vec<Vec<usize>> { ranked().iter().map(|r| r.iter().map(|(j, _)| *j).collect()).collect() };
         let filled = match method {
             FillMethod::Edm => edm().clone(),
             FillMethod::Pca | FillMethod::PcaAligned => {
@@ -964,9 +987,11 @@ impl Context<'_> {
                 let config = baseline::pca::PcaConfig { border_fade_s: (fade_s > 0.0).then_some(fade_s), ..paper };
                 baseline::pca::fill_marker(&window.take, 0, first..first + range.len(), &config)
             }
-            FillMethod::Rigid => baseline::rigid::fill(&window.take, config.selection),
+            FillMethod::Rigid => {
+                baseline::rigid::fill_across_ranked(&window.take, &donors(), baseline::rigid::Across::Linear)
+            }
             FillMethod::RigidSpline => {
-                baseline::rigid::fill_across(&window.take, config.selection, baseline::rigid::Across::Spline)
+                baseline::rigid::fill_across_ranked(&window.take, &donors(), baseline::rigid::Across::Spline)
             }
             FillMethod::Spline => baseline::spline::fill(&window.take),
             FillMethod::Linear => baseline::linear::fill(&window.take),
@@ -991,6 +1016,38 @@ impl Context<'_> {
         (first..first + range.len()).map(|k| filled.computed(k, 0)).collect()
     }
 
+    /// The neighbour ranking of every marker of `window` (its indices): by the variance of each
+    /// distance within the window plus [`AutoConfig::take_variance_share`] times its variance
+    /// over the whole take. Within a few seconds two markers on different limbs can keep
+    /// their distance by chance (an arm at rest beside the thigh) and rank as one segment; the
+    /// take-wide variance tells them apart, the window's what holds now.
+    fn window_ranking(&self, window: &Window) -> Vec<Vec<(usize, f64)>> {
+        let local = neighbours::rank_scored(&window.take, self.config.selection);
+        let share = self.config.take_variance_share;
+        if share <= 0.0 || self.config.selection != Selection::Variance {
+            return local;
+        }
+        let m = self.take.marker_count();
+        local
+            .into_iter()
+            .enumerate()
+            .map(|(a, list)| {
+                let ga = window.markers[a];
+                let mut list: Vec<(usize, f64)> =
+                    list.into_iter().map(|(b, v)| (b, v + share * self.variance[ga * m + window.markers[b]])).collect();
+                // Infinite (never steady) last, by index, as the ranking puts them.
+                list.sort_by(|x, y| {
+                    x.1.is_infinite().cmp(&y.1.is_infinite()).then(if x.1.is_infinite() {
+                        x.0.cmp(&y.0)
+                    } else {
+                        x.1.total_cmp(&y.1)
+                    })
+                });
+                list
+            })
+            .collect()
+    }
+
     /// The sub-take of `markers` (the gap's marker first) at `frames` (increasing), with
     /// `hidden` samples removed.
     fn window(&self, frames: Vec<usize>, markers: &[usize], hidden: &dyn Fn(usize, usize) -> bool) -> Option<Window> {
@@ -1003,7 +1060,7 @@ impl Context<'_> {
             }
         }
         let sub = Take::from_samples(names, &samples, take.frame_rate_hz()).ok()?;
-        Some(Window { take: sub, frames })
+        Some(Window { take: sub, frames, markers: markers.to_vec() })
     }
 }
 
@@ -1157,6 +1214,36 @@ mod tests {
     /// Marker 0 rides a rigid cluster with markers 1-5 that moves and turns; names from `name`.
     fn cluster(frames: usize, name: impl Fn(usize) -> String) -> Take {
         locap_testkit::rigid_cluster(frames, 6, name, |_, _| [0.0; 3])
+    }
+
+    /// Within a window a marker on another limb can keep its distance by chance; over the take
+    /// it does not, and the take's variance ranks it below the marker's true segment partner.
+    #[test]
+    fn a_window_ranks_neighbours_by_the_takes_variance_too() {
+        let frames = 600;
+        let names: Vec<locap_core::MarkerName> =
+            ["A", "B", "C"].iter().map(|n| locap_core::MarkerName::parse(n)).collect();
+        let mut samples = Vec::new();
+        for f in 0..frames {
+            let t = f as f64 / 120.0;
+            let a = Vec3::new(100.0 * t, 0.0, 1000.0);
+            // B rides with A, 2 mm of skin wobble; C swings away but for frames 0..120, where
+            // it stays put relative to A.
+            let b = a + Vec3::new(100.0 + 2.0 * (7.0 * t).sin(), 0.0, 0.0);
+            let swing = if f < 120 { 0.0 } else { 200.0 * (2.0 * t).sin() };
+            let c = a + Vec3::new(0.0, 300.0 + swing, 0.0);
+            samples.extend([Some(a), Some(b), Some(c)]);
+        }
+        let take = Take::from_samples(names, &samples, 120.0).unwrap();
+        let first = |share: f64| {
+            let config = AutoConfig { take_variance_share: share, ..AutoConfig::default() };
+            let cx = Context::new(&take, &config);
+            let window = cx.window((0..120).collect(), &[0, 1, 2], &|_, _| false).unwrap();
+            cx.window_ranking(&window)[0][0].0
+        };
+        // Window indices: 1 is B, 2 is C.
+        assert_eq!(first(0.0), 2, "the window alone ranks the still limb first");
+        assert_eq!(first(AutoConfig::default().take_variance_share), 1);
     }
 
     fn hide(take: &mut Take, marker: usize, frames: Range<usize>) {

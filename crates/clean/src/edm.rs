@@ -74,7 +74,13 @@ pub(crate) const MIN_NEIGHBOURS: usize = 3;
 
 /// Fills every gap of `take` with the EDM method using `k` neighbours ranked by `selection`.
 pub fn fill(take: &Take, k: usize, selection: Selection) -> Filled {
-    let ranked = neighbours::rank_scored(take, selection);
+    fill_ranked(take, k, &neighbours::rank_scored(take, selection))
+}
+
+/// [`fill`] with every marker's neighbours ranked as given: best first, each with the variance
+/// of its distance to the marker (mm^2; `f64::INFINITY`: never steady), as
+/// [`neighbours::rank_scored`] gives them. One entry per marker of `take`.
+pub fn fill_ranked(take: &Take, k: usize, ranked: &[Vec<(usize, f64)>]) -> Filled {
     let mut out = Filled::unchanged(take);
     let k = k.max(MIN_NEIGHBOURS);
     let m = take.marker_count();

@@ -56,6 +56,7 @@ fn main() {
     set(get("--neighbour-trials"), "--neighbour-trials", &mut config.neighbour_trials);
     set(get("--neighbour-weight"), "--neighbour-weight", &mut config.neighbour_weight);
     set(get("--context"), "--context", &mut config.context_s);
+    set(get("--take-variance"), "--take-variance", &mut config.take_variance_share);
     set(get("--pca-context"), "--pca-context", &mut config.pca_context_s);
     set(get("--pca-fit"), "--pca-fit", &mut config.pca_fit_frames);
     set(get("--pca-fade"), "--pca-fade", &mut config.pca_border_fade_s);

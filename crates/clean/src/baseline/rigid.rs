@@ -53,7 +53,12 @@ pub fn fill(take: &Take, selection: Selection) -> Filled {
 
 /// [`fill`] with the donors' frame carrying the marker's relative position `across` the gap.
 pub fn fill_across(take: &Take, selection: Selection, across: Across) -> Filled {
-    let ranked = neighbours::rank(take, selection);
+    fill_across_ranked(take, &neighbours::rank(take, selection), across)
+}
+
+/// [`fill_across`] with every marker's donors ranked as given, best first (one entry per
+/// marker of `take`).
+pub fn fill_across_ranked(take: &Take, ranked: &[Vec<usize>], across: Across) -> Filled {
     let mut out = Filled::unchanged(take);
     for (marker, ranked) in ranked.iter().enumerate() {
         for gap in gaps_of((0..take.frame_count()).map(|f| take.is_valid(f, marker))) {
