@@ -56,8 +56,10 @@
 //! eigen-decompositions however long the take, instead of one `3M x 3M` PCA per gapped marker
 //! over every frame. Gaps are independent (each reads only the input take) and are filled in
 //! parallel with rayon; the result does not depend on the thread count. The windows make each
-//! candidate a *local* version of its method (EDM's neighbour ranking and PCA's covariance come
-//! from the window); the trials measure exactly the local version that fills the real gap.
+//! candidate a *local* version of its method (PCA's covariance comes from the window, and so
+//! does EDM's and the rigid fills' neighbour ranking, with each pair's steadiness over the whole
+//! take added to it, [`AutoConfig::take_variance_share`]); the trials measure exactly the local
+//! version that fills the real gap.
 //!
 //! # Edge gaps
 //! A gap touching the take's start or end has one border. Its trials are cut the same way
@@ -115,7 +117,8 @@
 //!   grossly on the real gap (a PCA frame resting on two markers put a foot metres off). Half
 //!   of the neighbours, not all: a captured neighbour can be wrong itself for a few frames.
 //! - PCA sees a wider window (30 s each side) than the other candidates (2 s): its
-//!   covariance gains from more poses, EDM's ranking and the interpolations do not.
+//!   covariance gains from more poses, the interpolations do not, and EDM's ranking takes
+//!   the take's steadiness from the whole take already.
 //! - The PCA candidate is the paper's PCA in the aligned frame ([`FillMethod::PcaAligned`]),
 //!   instead of the paper's frame, not beside it: with both the choice was no better and
 //!   cost more. The frame's weights are the PCA's own (no parameter of its own); the change
@@ -262,8 +265,9 @@ pub struct AutoConfig {
     /// How neighbours are ranked (EDM, rigid and the sub-takes' marker choice).
     pub selection: Selection,
     /// Share of a pair's distance variance over the whole take added to its variance within
-    /// the sub-take when EDM and the rigid fills rank neighbours there
-    /// ([`Selection::Variance`]; 0: the sub-take's alone).
+    /// the sub-take when EDM and the rigid fills rank neighbours there, for gaps inside the
+    /// take ([`Selection::Variance`]; 0, negative or not finite: the sub-take's alone). EDM
+    /// weighs its neighbours by the sum as well ([`Context::window_ranking`]).
     pub take_variance_share: f64,
     /// Farthest a trial window may lie from the real gap, in seconds.
     pub search_s: f64,
@@ -550,6 +554,8 @@ struct Windows {
     /// The neighbour ranking in `local` ([`Context::window_ranking`]), shared by EDM and the
     /// rigid fills.
     ranked: std::cell::OnceCell<Vec<Vec<(usize, f64)>>>,
+    /// Which border the filled range lacks.
+    edge: Edge,
     /// The frames filled, in the take.
     range: Range<usize>,
 }
@@ -960,6 +966,7 @@ impl Context<'_> {
             wide: self.window(wide_frames, wide, hidden),
             edm: std::cell::OnceCell::new(),
             ranked: std::cell::OnceCell::new(),
+            edge,
             range,
         }
     }
@@ -972,7 +979,7 @@ impl Context<'_> {
         let Some(window) = window else { return vec![None; range.len()] };
         let Ok(first) = window.frames.binary_search(&range.start) else { return vec![None; range.len()] };
         let config = self.config;
-        let ranked = || windows.ranked.get_or_init(|| self.window_ranking(window));
+        let ranked = || windows.ranked.get_or_init(|| self.window_ranking(window, windows.edge));
         let edm = || windows.edm.get_or_init(|| edm::fill_ranked(&window.take, config.edm_neighbours, ranked()));
         let donors = || -> Vec<Vec<usize>> { ranked().iter().map(|r| r.iter().map(|(j, _)| *j).collect()).collect() };
         let filled = match method {
@@ -1016,15 +1023,21 @@ impl Context<'_> {
         (first..first + range.len()).map(|k| filled.computed(k, 0)).collect()
     }
 
-    /// The neighbour ranking of every marker of `window` (its indices): by the variance of each
-    /// distance within the window plus [`AutoConfig::take_variance_share`] times its variance
-    /// over the whole take. Within a few seconds two markers on different limbs can keep
-    /// their distance by chance (an arm at rest beside the thigh) and rank as one segment; the
-    /// take-wide variance tells them apart, the window's what holds now.
-    fn window_ranking(&self, window: &Window) -> Vec<Vec<(usize, f64)>> {
+    /// The neighbour ranking of every marker of `window` (its indices) for a gap inside the
+    /// take: each neighbour scored by the variance of its distance within the window plus
+    /// [`AutoConfig::take_variance_share`] times its variance over the whole take, in mm^2,
+    /// best first. Within a few seconds two markers on different limbs can keep their
+    /// distance by chance (an arm at rest beside the thigh) and rank as one segment; the
+    /// take-wide variance tells them apart, the window's what holds now. The score is what EDM
+    /// then weighs its neighbours by too (steady over the take counts more); ordering by it and
+    /// weighing by the window's variance alone did worse on held-out takes
+    /// (docs/benchmarks.md). At the take's edges EDM also gates its carriers by the variance
+    /// (at most 8 mm of spread), a gate the take's variance would tighten: there, and with
+    /// another [`Selection`], the window's own ranking.
+    fn window_ranking(&self, window: &Window, edge: Edge) -> Vec<Vec<(usize, f64)>> {
         let local = neighbours::rank_scored(&window.take, self.config.selection);
         let share = self.config.take_variance_share;
-        if share <= 0.0 || self.config.selection != Selection::Variance {
+        if !(share.is_finite() && share > 0.0) || self.config.selection != Selection::Variance || edge != Edge::Inside {
             return local;
         }
         let m = self.take.marker_count();
@@ -1035,7 +1048,7 @@ impl Context<'_> {
                 let ga = window.markers[a];
                 let mut list: Vec<(usize, f64)> =
                     list.into_iter().map(|(b, v)| (b, v + share * self.variance[ga * m + window.markers[b]])).collect();
-                // Infinite (never steady) last, by index, as the ranking puts them.
+                // Never steady (infinite) last, by index, as the ranking puts them.
                 list.sort_by(|x, y| {
                     x.1.is_infinite().cmp(&y.1.is_infinite()).then(if x.1.is_infinite() {
                         x.0.cmp(&y.0)
@@ -1239,7 +1252,7 @@ mod tests {
             let config = AutoConfig { take_variance_share: share, ..AutoConfig::default() };
             let cx = Context::new(&take, &config);
             let window = cx.window((0..120).collect(), &[0, 1, 2], &|_, _| false).unwrap();
-            cx.window_ranking(&window)[0][0].0
+            cx.window_ranking(&window, Edge::Inside)[0][0].0
         };
         // Window indices: 1 is B, 2 is C.
         assert_eq!(first(0.0), 2, "the window alone ranks the still limb first");

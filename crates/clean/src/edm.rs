@@ -77,9 +77,11 @@ pub fn fill(take: &Take, k: usize, selection: Selection) -> Filled {
     fill_ranked(take, k, &neighbours::rank_scored(take, selection))
 }
 
-/// [`fill`] with every marker's neighbours ranked as given: best first, each with the variance
-/// of its distance to the marker (mm^2; `f64::INFINITY`: never steady), as
-/// [`neighbours::rank_scored`] gives them. One entry per marker of `take`.
+/// [`fill`] with every marker's neighbours ranked as given: best first, each with a variance of
+/// its distance to the marker (mm^2; `f64::INFINITY`: never steady), as
+/// [`neighbours::rank_scored`] gives them. The variances weigh the Procrustes alignment and, at
+/// the take's edges, decide which neighbours may carry the marker. One entry per marker of
+/// `take`, every neighbour index below its marker count.
 pub fn fill_ranked(take: &Take, k: usize, ranked: &[Vec<(usize, f64)>]) -> Filled {
     let mut out = Filled::unchanged(take);
     let k = k.max(MIN_NEIGHBOURS);

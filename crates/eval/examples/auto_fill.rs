@@ -7,7 +7,8 @@
 //!     [--seed 0] [--per-length 5] [--blend 2] [--trials 3] [--context 2] [--markers 10]
 //!     [--pca-markers 41] [--pca-context 30] [--pca-fit 500] [--pca-fade 0.5] [--interpolate 100] [--least-squares]
 //!     [--neighbour-trials 2] [--neighbour-weight 0.5] [--score pooled|mean|median]
-//!     [--rigid-cluster 1.0] [--apart 4] [--loose 5] [--no-distance]
+//!     [--rigid-cluster 1.0] [--apart 4] [--loose 5] [--no-distance] [--trial-time 0.5]
+//!     [--take-variance 10]
 //! ```
 //!
 //! `--takes` also takes paths of one's own ending in `.c3d` (a take labeled by `locap label`

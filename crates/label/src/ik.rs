@@ -461,8 +461,9 @@ pub struct IkConfig {
     /// markers do not see (fingers, toes) in place (0: none, the paper's energy).
     pub rest: f64,
     /// Pull of every non-root joint towards the prior pose where one is set
-    /// ([`PoseTracker::set_prior`], [`solve_sequence_with_prior`]), per rad^2: another
-    /// solver's answer (a network's) that the markers refine.
+    /// ([`PoseTracker::set_prior`], [`solve_sequence_with_prior`]), per rad^2, times the
+    /// joint's own weight ([`MarkerModel::with_prior_weights`]): another solver's answer (a
+    /// network's) that the markers refine.
     pub prior: f64,
     /// Weight of a coupled joint's rotation vector away from its share of its leader's
     /// ([`JointCoupling`]), per rad^2.

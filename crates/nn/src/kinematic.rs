@@ -193,7 +193,8 @@ pub struct KinematicSolver {
     /// Settings of the calibration and the per-frame fit.
     pub config: SequenceConfig,
     /// [`IkConfig::prior`](locap_label::ik::IkConfig::prior) of [`KinematicSolver::refine`]:
-    /// how hard the network's pose holds against the markers.
+    /// how hard the network's pose holds against the markers, times each joint's factor
+    /// ([`KinematicSolver::with_refine_prior_factors`]).
     pub refine_prior: f64,
     /// Half-width (seconds) of the window over which [`KinematicSolver::refine`] averages the
     /// network's joint rotations before they pull: a per-frame network flickers from frame to
@@ -460,7 +461,8 @@ impl KinematicSolver {
     }
 
     /// The same solver with the network's pose in [`KinematicSolver::refine`] holding each named
-    /// joint `factor` times [`KinematicSolver::refine_prior`] (the others: 1 times).
+    /// joint `factor` times [`KinematicSolver::refine_prior`] (the others keep their factor: 1,
+    /// or the spine's [`BODY_SPINE_REFINE_FACTOR`] on the CMU body solver).
     ///
     /// # Errors
     /// A joint the skeleton lacks, or a factor that is negative or not finite.
@@ -780,7 +782,8 @@ mod tests {
     /// the solver keeps its settings.
     #[test]
     fn the_network_skeleton_moves_each_bone_its_share_of_the_way() {
-        let mut solver = KinematicSolver::cmu41().unwrap();
+        // A factor of the user's besides the spine's, to be carried over too.
+        let mut solver = KinematicSolver::cmu41().unwrap().with_refine_prior_factors(&[("lhand", 0.1)]).unwrap();
         solver.refine_prior = 7.0;
         solver.network_skeleton = 0.25;
         let template = solver.skeleton().clone();
@@ -804,7 +807,11 @@ mod tests {
         let weights = moved.model.prior_weights();
         assert_eq!(weights, solver.model.prior_weights());
         for (j, joint) in template.joints().iter().enumerate() {
-            let expected = if BODY_SPINE.contains(&joint.name.as_str()) { BODY_SPINE_REFINE_FACTOR } else { 1.0 };
+            let expected = match joint.name.as_str() {
+                "lhand" => 0.1,
+                name if BODY_SPINE.contains(&name) => BODY_SPINE_REFINE_FACTOR,
+                _ => 1.0,
+            };
             assert_eq!(weights[j], expected, "{}", joint.name);
         }
         assert!(solver.clone().with_refine_prior_factors(&[("nowhere", 2.0)]).is_err());
