@@ -230,8 +230,8 @@ pub const BODY_SPINE: [&str; 3] = ["lowerback", "upperback", "thorax"];
 /// How much harder than [`BODY_REFINE_PRIOR`] the network's pose holds the [`BODY_SPINE`] joints
 /// in [`KinematicSolver::refine`]: refined at the body's pull, the spine ends further from the
 /// truth than the network alone. Of 1, 3, 10 and 30 on the validation takes (as for
-/// [`BODY_REFINE_PRIOR`]), 3 gained JOE (0.06 degrees over the constrained joints) at 0.02 mm of
-/// JPE; 10 and 30 gained a little more JOE at 0.1-0.2 mm of JPE (docs/benchmarks.md, "The
+/// [`BODY_REFINE_PRIOR`]), 3 took most of the rotation gain for the least joint position cost;
+/// harder pulls traded more position for little more rotation (docs/benchmarks.md, "The
 /// network's pull per joint").
 pub const BODY_SPINE_REFINE_FACTOR: f64 = 3.0;
 
