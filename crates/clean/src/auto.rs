@@ -1008,13 +1008,12 @@ impl Context<'_> {
                     selection: config.selection,
                     ..crate::distance::DistanceConfig::default()
                 };
-                return crate::distance::fill_marker_ranked(
+                return crate::distance::fill_marker_from(
                     &window.take,
                     edm(),
                     0,
                     first..first + range.len(),
                     &distance,
-                    &ranked()[0],
                 );
             }
             // Not a candidate: the per-gap choice does not recurse.

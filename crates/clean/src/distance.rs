@@ -122,25 +122,10 @@ pub fn fill_marker_from(
     range: Range<usize>,
     config: &DistanceConfig,
 ) -> Vec<Option<Vec3>> {
-    let ranked = neighbours::rank_scored_of(take, marker, config.selection);
-    fill_marker_ranked(take, edm, marker, range, config, &ranked)
-}
-
-/// [`fill_marker_from`] with `marker`'s neighbours ranked as given (best first, with each
-/// one's distance variance, mm^2, as [`neighbours::rank_scored_of`] gives them): the members
-/// solved with it are chosen from them.
-pub fn fill_marker_ranked(
-    take: &Take,
-    edm: &Filled,
-    marker: usize,
-    range: Range<usize>,
-    config: &DistanceConfig,
-    ranked: &[(usize, f64)],
-) -> Vec<Option<Vec3>> {
     let start = starting_fill(edm);
     let frames = take.frame_count();
     let mut out: Vec<Option<Vec3>> = range.clone().map(|f| start.take.position_mm(f, marker)).collect();
-    let near = members(ranked, marker, config);
+    let near = members(&neighbours::rank_scored_of(take, marker, config.selection), marker, config);
     for g in gaps_of((0..frames).map(|f| take.is_valid(f, marker))) {
         if g.start == 0 || g.end() == frames || g.end() <= range.start || g.start >= range.end {
             continue;
