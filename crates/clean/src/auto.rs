@@ -981,7 +981,6 @@ impl Context<'_> {
         let config = self.config;
         let ranked = || windows.ranked.get_or_init(|| self.window_ranking(window, windows.edge));
         let edm = || windows.edm.get_or_init(|| edm::fill_ranked(&window.take, config.edm_neighbours, ranked()));
-        let donors = || -> Vec<Vec<usize>> { ranked().iter().map(|r| r.iter().map(|(j, _)| *j).collect()).collect() };
         let filled = match method {
             FillMethod::Edm => edm().clone(),
             FillMethod::Pca | FillMethod::PcaAligned => {
@@ -995,10 +994,10 @@ impl Context<'_> {
                 baseline::pca::fill_marker(&window.take, 0, first..first + range.len(), &config)
             }
             FillMethod::Rigid => {
-                baseline::rigid::fill_across_ranked(&window.take, &donors(), baseline::rigid::Across::Linear)
+                baseline::rigid::fill_across_ranked(&window.take, ranked(), baseline::rigid::Across::Linear)
             }
             FillMethod::RigidSpline => {
-                baseline::rigid::fill_across_ranked(&window.take, &donors(), baseline::rigid::Across::Spline)
+                baseline::rigid::fill_across_ranked(&window.take, ranked(), baseline::rigid::Across::Spline)
             }
             FillMethod::Spline => baseline::spline::fill(&window.take),
             FillMethod::Linear => baseline::linear::fill(&window.take),

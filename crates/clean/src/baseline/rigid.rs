@@ -53,12 +53,13 @@ pub fn fill(take: &Take, selection: Selection) -> Filled {
 
 /// [`fill`] with the donors' frame carrying the marker's relative position `across` the gap.
 pub fn fill_across(take: &Take, selection: Selection, across: Across) -> Filled {
-    fill_across_ranked(take, &neighbours::rank(take, selection), across)
+    fill_across_ranked(take, &neighbours::rank_scored(take, selection), across)
 }
 
-/// [`fill_across`] with every marker's donors ranked as given, best first (one entry per
-/// marker of `take`).
-pub fn fill_across_ranked(take: &Take, ranked: &[Vec<usize>], across: Across) -> Filled {
+/// [`fill_across`] with every marker's donors ranked as given, best first, as
+/// [`neighbours::rank_scored`] gives them (one entry per marker of `take`; only the order
+/// counts here, so an EDM fill's ranking serves as is).
+pub fn fill_across_ranked(take: &Take, ranked: &[Vec<(usize, f64)>], across: Across) -> Filled {
     let mut out = Filled::unchanged(take);
     for (marker, ranked) in ranked.iter().enumerate() {
         for gap in gaps_of((0..take.frame_count()).map(|f| take.is_valid(f, marker))) {
@@ -68,7 +69,7 @@ pub fn fill_across_ranked(take: &Take, ranked: &[Vec<usize>], across: Across) ->
     out
 }
 
-fn fill_gap(take: &Take, out: &mut Filled, marker: usize, gap: Gap, ranked: &[usize], across: Across) {
+fn fill_gap(take: &Take, out: &mut Filled, marker: usize, gap: Gap, ranked: &[(usize, f64)], across: Across) {
     let (before, after) = borders(gap.start, gap.end(), take.frame_count());
     let borders: Vec<(usize, Vec3)> = [before, after]
         .into_iter()
@@ -80,7 +81,7 @@ fn fill_gap(take: &Take, out: &mut Filled, marker: usize, gap: Gap, ranked: &[us
     }
     let usable: Vec<usize> = ranked
         .iter()
-        .copied()
+        .map(|(j, _)| *j)
         .filter(|j| borders.iter().all(|(b, _)| take.is_valid(*b, *j)))
         .filter(|j| (gap.start..gap.end()).all(|f| take.is_valid(f, *j)))
         .take(SEARCH)
