@@ -235,6 +235,16 @@ pub const BODY_SPINE: [&str; 3] = ["lowerback", "upperback", "thorax"];
 /// network's pull per joint").
 pub const BODY_SPINE_REFINE_FACTOR: f64 = 3.0;
 
+/// How much harder than [`BODY_REFINE_PRIOR`] the network's pose holds the CMU `head` joint
+/// in [`KinematicSolver::refine`]. The head cap's four markers see the head's orientation in
+/// the lab, but the neck between it and the thorax carries no marker, so how a nod is shared
+/// between `lowerneck`, `upperneck` and `head` is the network's call more than the markers':
+/// refined at the body's pull, the head ended further from the truth than the network alone.
+/// Of 3, 10 and 30 on the validation takes (as for [`BODY_SPINE_REFINE_FACTOR`]), 10 turned
+/// the joints best at no joint position cost; holding the whole neck was worse
+/// (docs/benchmarks.md, "The network's pull per joint").
+pub const BODY_HEAD_REFINE_FACTOR: f64 = 10.0;
+
 /// [`KinematicSolver::network_skeleton`] of the CMU body solver: halfway from the template to
 /// the skeleton the network predicted for the take. The subject calibration fits bone lengths
 /// (an overall scale, the wrist centres) but not where each joint centre sits on its bone, and
@@ -456,13 +466,15 @@ impl KinematicSolver {
             .collect();
         let mut solver = KinematicSolver::new(&Layout::cmu41(), skeleton, Some(dofs))?;
         solver.refine_prior = BODY_REFINE_PRIOR;
-        let spine: Vec<(&str, f64)> = BODY_SPINE.iter().map(|j| (*j, BODY_SPINE_REFINE_FACTOR)).collect();
-        solver.with_refine_prior_factors(&spine)
+        let mut factors: Vec<(&str, f64)> = BODY_SPINE.iter().map(|j| (*j, BODY_SPINE_REFINE_FACTOR)).collect();
+        factors.push(("head", BODY_HEAD_REFINE_FACTOR));
+        solver.with_refine_prior_factors(&factors)
     }
 
     /// The same solver with the network's pose in [`KinematicSolver::refine`] holding each named
     /// joint `factor` times [`KinematicSolver::refine_prior`] (the others keep their factor: 1,
-    /// or the spine's [`BODY_SPINE_REFINE_FACTOR`] on the CMU body solver).
+    /// or on the CMU body solver the spine's [`BODY_SPINE_REFINE_FACTOR`] and the head's
+    /// [`BODY_HEAD_REFINE_FACTOR`]).
     ///
     /// # Errors
     /// A joint the skeleton lacks, or a factor that is negative or not finite.
@@ -810,6 +822,7 @@ mod tests {
             let expected = match joint.name.as_str() {
                 "lhand" => 0.1,
                 name if BODY_SPINE.contains(&name) => BODY_SPINE_REFINE_FACTOR,
+                "head" => BODY_HEAD_REFINE_FACTOR,
                 _ => 1.0,
             };
             assert_eq!(weights[j], expected, "{}", joint.name);
