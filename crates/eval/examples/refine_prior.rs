@@ -88,6 +88,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             match g {
                 "offset" => solver.config.offset_prior = f,
                 "prior" => solver.refine_prior = f,
+                "huber" => solver.config.ik.prior_huber_deg = f,
                 _ => factors.extend(group(g).into_iter().map(|j| (j, f))),
             }
         }

@@ -465,6 +465,11 @@ pub struct IkConfig {
     /// joint's own weight ([`MarkerModel::with_prior_weights`]): another solver's answer (a
     /// network's) that the markers refine.
     pub prior: f64,
+    /// A joint further than this (degrees, its rotation vector's distance) from the prior pose
+    /// is pulled linearly, not squared (Huber): where the markers clearly show the prior
+    /// wrong about a joint they see, they win; where they leave it free, it holds. 0: plain
+    /// squares.
+    pub prior_huber_deg: f64,
     /// Weight of a coupled joint's rotation vector away from its share of its leader's
     /// ([`JointCoupling`]), per rad^2.
     pub coupling: f64,
@@ -517,6 +522,7 @@ impl IkConfig {
             locked: 10.0,
             rest: 0.01,
             prior: 0.0,
+            prior_huber_deg: 0.0,
             coupling: COUPLING,
             huber_mm: 20.0,
             optimizer: Optimizer::LevenbergMarquardt,
@@ -543,6 +549,7 @@ impl Default for IkConfig {
             locked: 10.0,
             rest: 0.0,
             prior: 0.0,
+            prior_huber_deg: 0.0,
             coupling: COUPLING,
             huber_mm: 0.0,
             optimizer: Optimizer::Bfgs,
@@ -641,9 +648,17 @@ impl PoseProblem<'_> {
             }
         }
         if let Some(prior) = self.prior {
-            // Every block but the root's (the first).
-            let off: f64 =
-                (6..theta.len()).map(|k| self.model.prior_weight_of(k) * (theta[k] - prior[k]).powi(2)).sum();
+            // Every block but the root's (the first), each joint's robustly.
+            let huber = self.config.prior_huber_deg.to_radians();
+            let off: f64 = (6..theta.len())
+                .step_by(3)
+                .map(|k| {
+                    let d2: f64 = (k..k + 3).map(|c| (theta[c] - prior[c]).powi(2)).sum();
+                    let rho =
+                        if huber > 0.0 && d2 > huber * huber { 2.0 * huber * d2.sqrt() - huber * huber } else { d2 };
+                    self.model.prior_weight_of(k) * rho
+                })
+                .sum();
             energy += self.config.prior * off;
         }
         energy
@@ -806,10 +821,18 @@ impl PoseProblem<'_> {
             }
         }
         if let Some(prior) = self.prior {
-            for k in 6..n {
-                let w = (self.config.prior * model.prior_weight_of(k)).sqrt();
-                r[rows_prior + k - 6] = w * (theta[k] - prior[k]);
-                jac[(rows_prior + k - 6, k)] = w;
+            let huber = self.config.prior_huber_deg.to_radians();
+            for k in (6..n).step_by(3) {
+                let mut w = (self.config.prior * model.prior_weight_of(k)).sqrt();
+                let d: f64 = (k..k + 3).map(|c| (theta[c] - prior[c]).powi(2)).sum::<f64>().sqrt();
+                if huber > 0.0 && d > huber {
+                    // IRLS weight of the Huber loss, as for the markers.
+                    w *= (huber / d).sqrt();
+                }
+                for c in k..k + 3 {
+                    r[rows_prior + c - 6] = w * (theta[c] - prior[c]);
+                    jac[(rows_prior + c - 6, c)] = w;
+                }
             }
         }
         if self.config.centre > 0.0 {
@@ -1864,6 +1887,69 @@ pub(crate) mod tests {
             let analytic = jac.column(k);
             let err = (numeric - analytic).norm();
             assert!(err < 1e-4 * analytic.norm().max(1.0), "parameter {k}: {err}");
+        }
+    }
+
+    #[test]
+    fn a_joint_far_from_the_prior_is_pulled_linearly_and_the_step_descends() {
+        let model = hinged_arm().with_prior_weights(vec![1.0, 4.0, 0.5, 1.0]).unwrap();
+        let tracker = PoseTracker::new(model.clone(), IkConfig::default(), 60.0);
+        // The prior's term alone.
+        let config = IkConfig {
+            observed: 0.0,
+            predicted: 0.0,
+            smooth: 0.0,
+            limits: 0.0,
+            locked: 0.0,
+            rest: 0.0,
+            coupling: 0.0,
+            centre: 0.0,
+            prior: 2.0,
+            prior_huber_deg: 5.0,
+            ..IkConfig::kinematic()
+        };
+        let plain = IkConfig { prior_huber_deg: 0.0, ..config };
+        let prior = arm_pose(&model, 0.9);
+        let observed = vec![None; model.markers_mm(&prior).len()];
+        let predicted = vec![None; observed.len()];
+        let h = 5f64.to_radians();
+        // The upper arm's block (weight 4) moved by `d` radians.
+        let moved = |d: f64| {
+            let mut theta = prior.clone();
+            let v = Vec3::new(1.0, 2.0, -2.0).normalize() * d;
+            for c in 0..3 {
+                theta[6 + c] += v[c];
+            }
+            theta
+        };
+        let energy = |config: &IkConfig, theta: &[f64]| {
+            let p = PoseProblem {
+                prior: Some(&prior),
+                ..problem(&model, config, &observed, &predicted, None, &tracker.locked)
+            };
+            p.energy(theta)
+        };
+        // Within the threshold the squares; beyond it linear, below the squares.
+        let near = moved(0.5 * h);
+        assert!((energy(&config, &near) - energy(&plain, &near)).abs() < 1e-12);
+        assert!((energy(&config, &near) - 2.0 * 4.0 * (0.5 * h).powi(2)).abs() < 1e-12);
+        let far = moved(4.0 * h);
+        assert!((energy(&config, &far) - 2.0 * 4.0 * (2.0 * h * 4.0 * h - h * h)).abs() < 1e-12);
+        assert!(energy(&config, &far) < 0.5 * energy(&plain, &far));
+        // The linearisation's gradient (J^T r) is half the energy's: its steps go downhill.
+        let p = PoseProblem {
+            prior: Some(&prior),
+            ..problem(&model, &config, &observed, &predicted, None, &tracker.locked)
+        };
+        let (r, jac) = p.linearize(&far);
+        let gradient = jac.transpose() * r;
+        for k in 0..far.len() {
+            let step = 1e-6;
+            let (mut up, mut down) = (far.clone(), far.clone());
+            up[k] += step;
+            down[k] -= step;
+            let numeric = (p.energy(&up) - p.energy(&down)) / (2.0 * step);
+            assert!((0.5 * numeric - gradient[k]).abs() < 1e-5 * gradient.norm().max(1.0), "parameter {k}");
         }
     }
 

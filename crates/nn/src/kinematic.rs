@@ -798,6 +798,7 @@ mod tests {
         let mut solver = KinematicSolver::cmu41().unwrap().with_refine_prior_factors(&[("lhand", 0.1)]).unwrap();
         solver.refine_prior = 7.0;
         solver.network_skeleton = 0.25;
+        solver.config.ik.prior_huber_deg = 5.0;
         let template = solver.skeleton().clone();
         let femur = template.index_of("lfemur").unwrap();
         let tibia = template.index_of("ltibia").unwrap();
@@ -814,6 +815,7 @@ mod tests {
         let other = template.index_of("rfemur").unwrap();
         assert!((offset(&moved, other) - offset(&solver, other)).norm() < 1e-9);
         assert_eq!((moved.refine_prior, moved.network_skeleton), (7.0, 0.0));
+        assert_eq!(moved.config.ik.prior_huber_deg, 5.0);
         assert_eq!(moved.rotating(), solver.rotating());
         // The spine's harder pull moves with it.
         let weights = moved.model.prior_weights();

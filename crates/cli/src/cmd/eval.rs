@@ -81,6 +81,12 @@ pub struct Args {
         help_heading = "Input"
     )]
     network_skeleton: Option<f64>,
+    /// Pull a joint more than this many degrees from the network's pose back linearly, not
+    /// squared, in `--refine` (Huber; default 0: plain squares). Lets the markers overrule the
+    /// network where they see a joint clearly, and lets fast motion jitter the hands and feet
+    /// more (docs/benchmarks.md, "The network's pull, robust").
+    #[arg(long, value_name = "DEGREES", requires = "refine", help_heading = "Input")]
+    prior_huber: Option<f64>,
     /// Write the results as JSON.
     #[arg(long, value_name = "FILE", help_heading = "Output")]
     json: Option<PathBuf>,
@@ -183,6 +189,10 @@ pub fn run(args: Args) -> Result<ExitCode> {
         if let Some(w) = args.network_skeleton {
             anyhow::ensure!((0.0..=1.0).contains(&w), "--network-skeleton {w}: a share from 0 to 1");
             k.network_skeleton = w;
+        }
+        if let Some(d) = args.prior_huber {
+            anyhow::ensure!(d.is_finite() && d >= 0.0, "--prior-huber {d} is not an angle (finite, at least 0)");
+            k.config.ik.prior_huber_deg = d;
         }
         Some(k)
     } else {
