@@ -89,6 +89,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 "offset" => solver.config.offset_prior = f,
                 "prior" => solver.refine_prior = f,
                 "huber" => solver.config.ik.prior_huber_deg = f,
+                "bias" => solver.bias_huber_deg = f,
+                "biaswin" => solver.bias_half_window_s = f,
                 _ => factors.extend(group(g).into_iter().map(|j| (j, f))),
             }
         }

@@ -205,6 +205,15 @@ pub struct KinematicSolver {
     /// template; 1: the network's). Only the CMU body solver does it (its build is repeated on
     /// the new skeleton): [`BODY_NETWORK_SKELETON`] there, 0 elsewhere.
     pub network_skeleton: f64,
+    /// [`KinematicSolver::refine`] in two passes where above 0 (degrees): the first pass's
+    /// rotation away from the network's, per joint averaged over
+    /// [`KinematicSolver::bias_half_window_s`] each side, is taken as the network's bias, and
+    /// its part beyond this angle is added to the network's pose before the second pass pulls
+    /// towards it. The markers correct a network persistently wrong about a joint they see;
+    /// the pull stays smooth, so they cannot turn a fast hand from frame to frame.
+    pub bias_huber_deg: f64,
+    /// Half-width (seconds) of the window [`KinematicSolver::bias_huber_deg`] averages over.
+    pub bias_half_window_s: f64,
     /// The joints the CMU body solver turns, when this is one ([`KinematicSolver::cmu41`]):
     /// what it needs to be built again on another skeleton.
     cmu_rotating: Option<Vec<bool>>,
@@ -244,6 +253,21 @@ pub const BODY_SPINE_REFINE_FACTOR: f64 = 3.0;
 /// the joints best at no joint position cost; holding the whole neck was worse
 /// (docs/benchmarks.md, "The network's pull per joint").
 pub const BODY_HEAD_REFINE_FACTOR: f64 = 10.0;
+
+/// [`KinematicSolver::bias_huber_deg`] of the CMU body solver: its refinement runs twice, and
+/// where the first pass turned a joint more than 5 degrees from the network's pose on average
+/// (over [`BODY_BIAS_HALF_WINDOW_S`] each side), the network's pose is turned by the excess
+/// before the second. A per-frame Huber pull (`IkConfig::prior_huber_deg`) at 5 degrees did
+/// as well on held-out joints but let a fast hand snap 20-30 degrees from frame to frame on
+/// real takes; the averaged correction keeps the pull smooth. Of 3, 5 and 10 degrees and
+/// windows of 0.05 to 1 s on the validation takes (as for [`BODY_SPINE_REFINE_FACTOR`]), 5
+/// degrees over 0.05 and 0.1 s were no worse than one pass on any figure and better on joint
+/// positions; the wider windows turned joints worse (docs/benchmarks.md, "The network's
+/// bias, corrected in a second pass").
+pub const BODY_BIAS_HUBER_DEG: f64 = 5.0;
+
+/// [`KinematicSolver::bias_half_window_s`] of the CMU body solver (see [`BODY_BIAS_HUBER_DEG`]).
+pub const BODY_BIAS_HALF_WINDOW_S: f64 = 0.1;
 
 /// [`KinematicSolver::network_skeleton`] of the CMU body solver: halfway from the template to
 /// the skeleton the network predicted for the take. The subject calibration fits bone lengths
@@ -332,6 +356,8 @@ impl KinematicSolver {
             refine_prior: REFINE_PRIOR,
             prior_half_window_s: PRIOR_HALF_WINDOW_S,
             network_skeleton: 0.0,
+            bias_huber_deg: 0.0,
+            bias_half_window_s: 1.0,
             cmu_rotating: None,
         })
     }
@@ -466,6 +492,8 @@ impl KinematicSolver {
             .collect();
         let mut solver = KinematicSolver::new(&Layout::cmu41(), skeleton, Some(dofs))?;
         solver.refine_prior = BODY_REFINE_PRIOR;
+        solver.bias_huber_deg = BODY_BIAS_HUBER_DEG;
+        solver.bias_half_window_s = BODY_BIAS_HALF_WINDOW_S;
         let mut factors: Vec<(&str, f64)> = BODY_SPINE.iter().map(|j| (*j, BODY_SPINE_REFINE_FACTOR)).collect();
         factors.push(("head", BODY_HEAD_REFINE_FACTOR));
         solver.with_refine_prior_factors(&factors)
@@ -672,7 +700,16 @@ impl KinematicSolver {
             .collect();
         let half = (self.prior_half_window_s * rate_hz).round();
         let poses = if half >= 1.0 { mean_rotations(&poses, half as usize) } else { poses };
-        self.solve_frames(cleaned, rate_hz, Some(&poses))
+        if !(self.bias_huber_deg > 0.0) {
+            return self.solve_frames(cleaned, rate_hz, Some(&poses));
+        }
+        let (first, first_report) = self.solve_frames(cleaned, rate_hz, Some(&poses))?;
+        let fitted: Vec<&[Quat]> = (0..frames).map(|f| first.local_rotations(f)).collect();
+        let half = (self.bias_half_window_s * rate_hz).round().max(0.0) as usize;
+        let corrected = without_bias(&poses, &fitted, half, self.bias_huber_deg.to_radians());
+        let (motion, mut report) = self.solve_frames(cleaned, rate_hz, Some(&corrected))?;
+        report.seconds += first_report.seconds;
+        Ok((motion, report))
     }
 
     /// The CMU body solver built again on its template with each bone offset moved
@@ -696,6 +733,8 @@ impl KinematicSolver {
         solver.refine_prior = self.refine_prior;
         solver.prior_half_window_s = self.prior_half_window_s;
         solver.network_skeleton = 0.0;
+        solver.bias_huber_deg = self.bias_huber_deg;
+        solver.bias_half_window_s = self.bias_half_window_s;
         solver.model = solver.model.with_prior_weights(self.model.prior_weights().to_vec()).map_err(config_error)?;
         Ok(solver)
     }
@@ -735,6 +774,29 @@ impl KinematicSolver {
         };
         Ok((motion, report))
     }
+}
+
+/// `prior` turned, per joint and frame, by the part beyond `limit_rad` of its average rotation
+/// (over `half` frames each side) to `fitted`: the bias of the prior that the markers showed,
+/// less what may be the markers' own noise ([`KinematicSolver::bias_huber_deg`]).
+fn without_bias(prior: &[Vec<Quat>], fitted: &[&[Quat]], half: usize, limit_rad: f64) -> Vec<Vec<Quat>> {
+    let away: Vec<Vec<Quat>> =
+        prior.iter().zip(fitted).map(|(p, r)| p.iter().zip(r.iter()).map(|(p, r)| p.inverse() * r).collect()).collect();
+    let bias = mean_rotations(&away, half);
+    prior
+        .iter()
+        .zip(&bias)
+        .map(|(pose, bias)| {
+            pose.iter()
+                .zip(bias)
+                .map(|(p, b)| {
+                    let v = b.scaled_axis();
+                    let angle = v.norm();
+                    if angle > limit_rad { p * Quat::from_scaled_axis(v * ((angle - limit_rad) / angle)) } else { *p }
+                })
+                .collect()
+        })
+        .collect()
 }
 
 /// Each joint's rotation averaged over `half` frames on each side, fewer at the take's ends
@@ -789,6 +851,40 @@ mod tests {
         assert!(mean[0][0].angle_to(&Quat::from_axis_angle(&axis, 0.025)) < 1e-4);
     }
 
+    /// A prior persistently turned away from the fit is corrected by the excess over the limit;
+    /// one within the limit, or off in a single frame only, is left alone.
+    #[test]
+    fn the_second_pass_removes_the_priors_persistent_bias_beyond_the_limit() {
+        let axis = Vec3::z_axis();
+        let frames = 41;
+        let prior: Vec<Vec<Quat>> = (0..frames)
+            .map(|f| vec![Quat::from_axis_angle(&axis, 0.01 * f as f64), Quat::identity(), Quat::identity()])
+            .collect();
+        // Joint 0 fitted 20 degrees further throughout; joint 1 3 degrees; joint 2 30 degrees in
+        // frame 20 alone.
+        let fitted: Vec<Vec<Quat>> = prior
+            .iter()
+            .enumerate()
+            .map(|(f, p)| {
+                let spike = if f == 20 { 30f64.to_radians() } else { 0.0 };
+                vec![
+                    p[0] * Quat::from_axis_angle(&axis, 20f64.to_radians()),
+                    p[1] * Quat::from_axis_angle(&axis, 3f64.to_radians()),
+                    p[2] * Quat::from_axis_angle(&axis, spike),
+                ]
+            })
+            .collect();
+        let fitted: Vec<&[Quat]> = fitted.iter().map(Vec::as_slice).collect();
+        let corrected = without_bias(&prior, &fitted, 12, 5f64.to_radians());
+        for f in 0..frames {
+            let turned = |j: usize| (prior[f][j].inverse() * corrected[f][j]).angle().to_degrees();
+            assert!((turned(0) - 15.0).abs() < 1e-9, "frame {f}: {}", turned(0));
+            assert!(turned(1) < 1e-9);
+            // The spike averages to 30 / 25 = 1.2 degrees at most: within the limit.
+            assert!(turned(2) < 1e-9, "frame {f}: {}", turned(2));
+        }
+    }
+
     /// The refinement's skeleton moves the asked share of the way from the template to the
     /// network's, joint by joint; a joint the network lacks keeps the template's offset, and
     /// the solver keeps its settings.
@@ -816,6 +912,7 @@ mod tests {
         assert!((offset(&moved, other) - offset(&solver, other)).norm() < 1e-9);
         assert_eq!((moved.refine_prior, moved.network_skeleton), (7.0, 0.0));
         assert_eq!(moved.config.ik.prior_huber_deg, 5.0);
+        assert_eq!((moved.bias_huber_deg, moved.bias_half_window_s), (BODY_BIAS_HUBER_DEG, BODY_BIAS_HALF_WINDOW_S));
         assert_eq!(moved.rotating(), solver.rotating());
         // The spine's harder pull moves with it.
         let weights = moved.model.prior_weights();

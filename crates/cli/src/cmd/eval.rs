@@ -87,6 +87,10 @@ pub struct Args {
     /// more (docs/benchmarks.md, "The network's pull, robust").
     #[arg(long, value_name = "DEGREES", requires = "refine", help_heading = "Input")]
     prior_huber: Option<f64>,
+    /// The network's bias the CMU body refinement's second pass removes beyond this many
+    /// degrees (0: one pass; default `locap_nn::kinematic::BODY_BIAS_HUBER_DEG`).
+    #[arg(long, value_name = "DEGREES", requires = "refine", help_heading = "Input")]
+    refine_bias: Option<f64>,
     /// Write the results as JSON.
     #[arg(long, value_name = "FILE", help_heading = "Output")]
     json: Option<PathBuf>,
@@ -193,6 +197,10 @@ pub fn run(args: Args) -> Result<ExitCode> {
         if let Some(d) = args.prior_huber {
             anyhow::ensure!(d.is_finite() && d >= 0.0, "--prior-huber {d} is not an angle (finite, at least 0)");
             k.config.ik.prior_huber_deg = d;
+        }
+        if let Some(d) = args.refine_bias {
+            anyhow::ensure!(d.is_finite() && d >= 0.0, "--refine-bias {d} is not an angle (finite, at least 0)");
+            k.bias_huber_deg = d;
         }
         Some(k)
     } else {
