@@ -101,6 +101,9 @@
 //!   noise. Under that limit, body-worn markers of the 41-marker set never qualify (the
 //!   steadiest head marker's third neighbour varies by 3.3 mm), and a 62-marker set's plates all do
 //!   (0.2-1.0 mm; 1.5 changed little, 2 took in the feet and was worse; docs/benchmarks.md).
+//!   A plate must also have shown itself over as many frames as the gap: a marker seen for
+//!   a few frames beside a long gap keeps its distances to markers on other segments as
+//!   steady as a plate's there (a knee marker of a 2.4 s walk, seen 38 frames).
 //!   Looser clusters count where they are set apart from the body
 //!   ([`AutoConfig::rigid_cluster_apart`]): a head cap's four markers keep their distances
 //!   to within 0.4-3.8 mm and to nothing else within 10 mm, so no other marker can say more
@@ -858,7 +861,14 @@ impl Context<'_> {
     /// Whether `marker` and its three steadiest neighbours form a rigid cluster
     /// ([`AutoConfig::rigid_cluster_mm`], or looser but set apart from the rest of the body,
     /// [`AutoConfig::rigid_cluster_apart`]) whose other three are captured throughout `gap`
-    /// and its borders.
+    /// and its borders, and with `marker` in at least as many frames as the gap is long.
+    ///
+    /// The last because a cluster's steadiness is only shown over the frames where it was
+    /// seen: a knee marker seen in 38 frames of a 238-frame walk, around a 2 s gap, kept its
+    /// distances to the ankle and shank markers within 1 mm there, and it rides on no plate
+    /// (their distances vary by 3-4 mm over the whole walk, and the rigid fill put it 98 mm
+    /// off). A plate must show itself rigid over as much motion as it is to carry the marker
+    /// through.
     fn rides_a_rigid_cluster(&self, marker: usize, gap: Gap, edge: Edge) -> bool {
         let config = &self.config;
         if config.rigid_cluster_mm <= 0.0 {
@@ -872,7 +882,15 @@ impl Context<'_> {
             && third <= config.rigid_cluster_loose_mm
             && spread_mm.get(CLUSTER_PARTNERS).is_some_and(|&(_, fourth)| fourth >= config.rigid_cluster_apart * third);
         (third <= config.rigid_cluster_mm || set_apart)
-            && spread_mm[..CLUSTER_PARTNERS].iter().all(|(j, _)| self.captured_around(*j, gap, edge))
+            && spread_mm[..CLUSTER_PARTNERS]
+                .iter()
+                .all(|(j, _)| self.captured_around(*j, gap, edge) && self.seen_together(marker, *j, gap.len))
+    }
+
+    /// Whether markers `a` and `b` are captured together in at least `frames` frames.
+    fn seen_together(&self, a: usize, b: usize, frames: usize) -> bool {
+        let take = self.take;
+        (0..take.frame_count()).filter(|&f| take.is_valid(f, a) && take.is_valid(f, b)).take(frames).count() >= frames
     }
 
     /// Starts of the trial windows for `gap` of `marker`, nearest first.
@@ -1370,6 +1388,23 @@ mod tests {
         assert!(choice.trials > 0 && !choice.trial_rmse_mm.is_empty());
         let off = fill(&holed, &AutoConfig { rigid_cluster_mm: 0.0, ..AutoConfig::default() });
         assert_eq!(off.choices[0].weights.len(), 2, "{}", off.choices[0].method());
+    }
+
+    /// A plate seen for fewer frames than the gap is long has not shown itself rigid over
+    /// the motion it would carry the marker through: the trials decide; seen as long as the
+    /// gap, the rigid fill alone.
+    #[test]
+    fn a_plate_seen_for_less_than_the_gap_is_left_to_the_trials() {
+        let truth = cluster(300, |i| format!("M{i}"));
+        let mut holed = truth.clone();
+        // Captured in frames 0..40 and 260..300 (80 frames) around a 220-frame gap.
+        hide(&mut holed, 0, 40..260);
+        let out = fill(&holed, &AutoConfig::default());
+        assert_eq!(out.choices[0].weights.len(), 2, "{}", out.choices[0].method());
+        let mut holed = truth.clone();
+        hide(&mut holed, 0, 110..190);
+        let out = fill(&holed, &AutoConfig::default());
+        assert_eq!(out.choices[0].weights, vec![(FillMethod::Rigid, 1.0)], "{}", out.choices[0].method());
     }
 
     /// A cluster of four that wobbles by a few millimetres (a head cap), set apart from the

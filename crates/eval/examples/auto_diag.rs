@@ -3,7 +3,7 @@
 //! that gap, so a wrong choice can be traced to its trials.
 //!
 //! ```text
-//! cargo run -p locap-eval --release --example auto_diag -- TAKE.c3d [--seed 0] [--per-length 5] [--only 1s] [--multi]
+//! cargo run -p locap-eval --release --example auto_diag -- TAKE.c3d|TAKE.trc [--seed 0] [--per-length 5] [--only 1s] [--multi]
 //!     [--neighbour-trials 2]
 //! ```
 //!
@@ -23,7 +23,13 @@ fn main() -> anyhow::Result<()> {
     let seed = option("--seed").map_or(Ok(0), |v| v.parse())?;
     let per_length = option("--per-length").map_or(Ok(5), |v| v.parse())?;
     let only = option("--only");
-    let truth = fill_lengths::labeled_only(&locap_io::c3d::read_path(std::path::Path::new(path))?.to_take()?);
+    let path = std::path::Path::new(path);
+    let take = if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("trc")) {
+        locap_io::trc::read_trc_path(path)?
+    } else {
+        locap_io::c3d::read_path(path)?.to_take()?
+    };
+    let truth = fill_lengths::labeled_only(&take);
     let config = LengthsConfig { seed, per_length, ..LengthsConfig::default() };
     let methods = locap_clean::auto::CANDIDATES;
     println!(

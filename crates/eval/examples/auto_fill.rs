@@ -4,6 +4,7 @@
 //!
 //! ```text
 //! cargo run -p locap-eval --release --example auto_fill -- [--takes 85_02,85_12,135_02,hdm05,kneel,rolling]
+//!     (or another lab's: hamner,rajrun,rajwalk,sprint)
 //!     [--seed 0] [--per-length 5] [--blend 2] [--trials 3] [--context 2] [--markers 10]
 //!     [--pca-markers 41] [--pca-context 30] [--pca-fit 500] [--pca-fade 0.5] [--interpolate 100] [--least-squares]
 //!     [--neighbour-trials 2] [--neighbour-weight 0.5] [--score pooled|mean|median]
@@ -11,8 +12,8 @@
 //!     [--take-variance 10]
 //! ```
 //!
-//! `--takes` also takes paths of one's own ending in `.c3d` (a take labeled by `locap label`
-//! and cut to a stretch where its markers are captured).
+//! `--takes` also takes paths of one's own ending in `.c3d` or `.trc` (a take labeled by
+//! `locap label` and cut to a stretch where its markers are captured).
 //!
 //! Most constants of `AutoConfig::default` were chosen on CMU 85_12 with seeds other than 0;
 //! report the other takes (held out) at seed 0. The score, the neighbour weight and the
@@ -28,6 +29,13 @@ fn path_of(name: &str) -> String {
         "hdm05" => "hdm05-c3d/HDM_bd_05-01_01_120.c3d".to_string(),
         "kneel" => "labeling/KneeltoProne01.c3d".to_string(),
         "rolling" => "numediart-c3d/03_rolling.c3d".to_string(),
+        // Another lab's takes (OpenSim's example pipelines), never used to choose a setting
+        // before session 2026-12-06 (4): the held-out check of docs/benchmarks.md, "Other
+        // labs: the OpenSim pipeline takes".
+        "hamner" => "trc/Pipelines_Hamner_subject02_running.trc".to_string(),
+        "rajrun" => "trc/Pipelines_Rajagopal_ExpData_motion_capture_run.trc".to_string(),
+        "rajwalk" => "trc/Pipelines_Rajagopal_ExpData_motion_capture_walk.trc".to_string(),
+        "sprint" => "trc/SprintMotion.trc".to_string(),
         other => format!("cmu-c3d/{other}.c3d"),
     }
 }
@@ -79,13 +87,18 @@ fn main() {
     let mut takes = Vec::new();
     for name in get("--takes").unwrap_or_else(|| "85_02,85_12,135_02,hdm05".into()).split(',') {
         // A path of one's own (a take labeled by `locap label`, say) as it is.
-        let path = if name.ends_with(".c3d") {
+        let path = if name.ends_with(".c3d") || name.ends_with(".trc") {
             std::path::PathBuf::from(name)
         } else {
             let Some(path) = locap_testkit::shared_file(&path_of(name)) else { return };
             path
         };
-        let take = locap_io::c3d::read_path(&path).and_then(|c| c.to_take()).unwrap_or_else(|e| panic!("{e}"));
+        let take = if path.extension().is_some_and(|e| e == "trc") {
+            locap_io::trc::read_trc_path(&path)
+        } else {
+            locap_io::c3d::read_path(&path).and_then(|c| c.to_take())
+        };
+        let take = take.unwrap_or_else(|e| panic!("{e}"));
         takes.push((name.to_string(), take));
     }
     let singles: Vec<FillConfig> =
