@@ -9,8 +9,8 @@
 //! joint name; the factor times `KinematicSolver::refine_prior`, replacing the default's),
 //! `prior=W` (the pull itself), `offset=W` (the calibration's offset prior) and `kin` (the
 //! kinematic solver alone, no network); `base` alone: the default refinement. Prints, pooled by
-//! frames, JOE and JPE over all joints and over the joints the markers constrain, then JOE per
-//! joint.
+//! frames, JOE and JPE over all joints and over the joints the markers constrain, then JPE and
+//! JOE per joint.
 
 use locap_clean::FillConfig;
 use locap_core::{LengthUnit, Motion};
@@ -139,6 +139,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             mean(&jpe[m], &|_| true),
             mean(&jpe[m], &|j| constrained[j]),
         );
+    }
+    println!("JPE per joint (mm)");
+    for j in 0..joints {
+        let mut line = format!("{:<13}", template.skeleton().joints()[j].name);
+        for row in &jpe {
+            line += &format!(" {:7.2}", row[j] / frames);
+        }
+        println!("{line}");
     }
     println!("JOE per joint (deg), constrained marked *");
     for j in (0..joints).filter(|&j| rotating[j]) {
