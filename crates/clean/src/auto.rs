@@ -27,7 +27,9 @@
 //! 2. every candidate ([`FillMethod::Edm`], [`FillMethod::PcaAligned`], [`FillMethod::Rigid`],
 //!    [`FillMethod::RigidSpline`] for gaps up to [`AutoConfig::rigid_spline_s`],
 //!    [`FillMethod::Spline`], [`FillMethod::Linear`], [`FillMethod::Distance`] for gaps of at
-//!    least [`AutoConfig::distance_min_s`]) fills each trial; each is scored by its
+//!    least [`AutoConfig::distance_min_s`], [`FillMethod::PoseMatch`] for those too) fills
+//!    each trial; each
+//!    is scored by its
 //!    RMSE over the hidden samples of `i` in each trial, averaged over the trials
 //!    ([`TrialScore::MeanOfTrials`]; a neighbour trial's RMSE counts at a quarter,
 //!    [`AutoConfig::neighbour_weight`]). A sample a candidate leaves missing counts with the
@@ -48,7 +50,8 @@
 //! *sub-takes*: for EDM, rigid, spline, linear and the distance fill, the gap's frames plus
 //! [`AutoConfig::context_s`] (at least the gap's own length) on each side, and only `i` and
 //! its [`AutoConfig::markers`] best neighbours (ranked once over the whole take,
-//! [`crate::neighbours`]); for PCA, up to [`AutoConfig::pca_markers`] markers (all by default),
+//! [`crate::neighbours`]); for PCA and pose matching, up to [`AutoConfig::pca_markers`]
+//! markers (all by default),
 //! the gap's frames and [`AutoConfig::pca_fit_frames`] frames spread evenly over
 //! [`AutoConfig::pca_context_s`] on each side (PCA treats frames as independent samples, and
 //! a covariance settles long before every frame is in it), reconstructing `i` alone
@@ -153,6 +156,12 @@
 //!   lab (HDM05) were held out (`locap bench fill --lengths`; the tuning example
 //!   `crates/eval/examples/auto_fill.rs`, the test `crates/eval/tests/auto_real.rs`). The
 //!   score and the neighbour weight were chosen by leaving each of six takes out in turn.
+//! - Pose matching ([`crate::pose_match`], since session 2026-12-06, 4) is a candidate for
+//!   interior gaps, on PCA's window. Alone it is worse than the aligned PCA on most takes;
+//!   as a candidate it helped both the tuning takes and another lab's (OpenSim's pipeline
+//!   takes, where the runs repeat one cycle and PCA was the only good candidate), because its
+//!   errors are not PCA's: it finds a pose, PCA mixes them (docs/benchmarks.md, "Pose
+//!   matching, an eighth candidate").
 //! - Unlabeled points (`*N`) are not filled, as in [`crate::fill_gaps`].
 
 use crate::neighbours::{self, Selection};
@@ -168,7 +177,7 @@ use std::ops::Range;
 pub const CHECKED_NEIGHBOURS: usize = 3;
 
 /// The candidates, in the order ties are broken.
-pub const CANDIDATES: [FillMethod; 7] = [
+pub const CANDIDATES: [FillMethod; 8] = [
     FillMethod::Edm,
     FillMethod::PcaAligned,
     FillMethod::Rigid,
@@ -176,6 +185,7 @@ pub const CANDIDATES: [FillMethod; 7] = [
     FillMethod::Spline,
     FillMethod::Linear,
     FillMethod::Distance,
+    FillMethod::PoseMatch,
 ];
 
 /// Markers besides one that fix a rigid body's pose: the partners of a rigid cluster.
@@ -312,6 +322,11 @@ pub struct AutoConfig {
     /// interpolations and the rigid fill with a spline follow the border motion to within a
     /// millimetre, and one more candidate only adds noise to the choice.
     pub distance_min_s: f64,
+    /// Whether pose matching ([`FillMethod::PoseMatch`]) is a candidate (for interior gaps of
+    /// at least [`AutoConfig::distance_min_s`], as the distance fill: below it the
+    /// interpolations win, and the many trials of the many short gaps made it the costliest
+    /// candidate).
+    pub pose_match: bool,
 }
 
 impl AutoConfig {
@@ -359,6 +374,7 @@ impl Default for AutoConfig {
             rigid_cluster_loose_mm: 5.0,
             distance: true,
             distance_min_s: 0.1,
+            pose_match: true,
         }
     }
 }
@@ -581,14 +597,16 @@ impl Context<'_> {
         let interpolates = gap.len as f64 <= self.config.interpolate_s * self.take.frame_rate_hz();
         let rigid_spline = gap.len as f64 <= self.config.rigid_spline_s * self.take.frame_rate_hz();
         // Rounded: 0.1 s at 120 Hz is 12 frames, not 12.000000000000002.
-        let distance = self.config.distance
-            && gap.len >= (self.config.distance_min_s * self.take.frame_rate_hz()).round() as usize;
+        let from_min = gap.len >= (self.config.distance_min_s * self.take.frame_rate_hz()).round() as usize;
+        let distance = self.config.distance && from_min;
+        let pose_match = self.config.pose_match && from_min;
         let candidates: Vec<FillMethod> = if edge == Edge::Inside && interpolates {
             CANDIDATES
                 .iter()
                 .copied()
                 .filter(|c| rigid_spline || *c != FillMethod::RigidSpline)
                 .filter(|c| distance || *c != FillMethod::Distance)
+                .filter(|c| pose_match || *c != FillMethod::PoseMatch)
                 .collect()
         } else {
             CANDIDATES[..3].to_vec()
@@ -992,8 +1010,9 @@ impl Context<'_> {
     /// Candidate `method`'s fill of the windows' marker over their frames `range`.
     fn candidate(&self, method: FillMethod, windows: &Windows) -> Vec<Option<Vec3>> {
         let range = windows.range.clone();
-        let pca = matches!(method, FillMethod::Pca | FillMethod::PcaAligned);
-        let window = if pca { &windows.wide } else { &windows.local };
+        // PCA and pose matching learn from other frames: the wide window's.
+        let wide = matches!(method, FillMethod::Pca | FillMethod::PcaAligned | FillMethod::PoseMatch);
+        let window = if wide { &windows.wide } else { &windows.local };
         let Some(window) = window else { return vec![None; range.len()] };
         let Ok(first) = window.frames.binary_search(&range.start) else { return vec![None; range.len()] };
         let config = self.config;
@@ -1032,6 +1051,14 @@ impl Context<'_> {
                     first..first + range.len(),
                     &distance,
                 );
+            }
+            FillMethod::PoseMatch => {
+                let pose = crate::pose_match::PoseMatchConfig {
+                    selection: config.selection,
+                    ..crate::pose_match::PoseMatchConfig::default()
+                };
+                let ranked = neighbours::rank_scored_of(&window.take, 0, config.selection);
+                crate::pose_match::fill_marker(&window.take, 0, first..first + range.len(), &ranked, &pose)
             }
             // Not a candidate: the per-gap choice does not recurse.
             FillMethod::Auto => return vec![None; range.len()],

@@ -56,6 +56,7 @@ pub mod filler;
 pub mod local_frame;
 pub mod neighbours;
 pub mod outliers;
+pub mod pose_match;
 pub mod procrustes;
 pub mod stage;
 pub mod swaps;
@@ -90,6 +91,9 @@ pub enum FillMethod {
     /// the neighbours missing with it, as the least-squares trajectory that keeps the steady
     /// distances and moves smoothly: locap's.
     Distance,
+    /// Pose matching ([`pose_match`]): each missing sample from the frames where the marker's
+    /// neighbours stood in the same shape, carried onto them: locap's.
+    PoseMatch,
     /// Per gap, the method (or blend) that filled trial gaps of the same length in the same
     /// take best ([`auto`]).
     Auto,
@@ -98,7 +102,7 @@ pub enum FillMethod {
 impl FillMethod {
     /// The single methods, the paper's first ([`FillMethod::Auto`] chooses among them and is
     /// not listed).
-    pub const ALL: [FillMethod; 8] = [
+    pub const ALL: [FillMethod; 9] = [
         FillMethod::Edm,
         FillMethod::Linear,
         FillMethod::Spline,
@@ -107,6 +111,7 @@ impl FillMethod {
         FillMethod::Rigid,
         FillMethod::RigidSpline,
         FillMethod::Distance,
+        FillMethod::PoseMatch,
     ];
 
     /// Lower-case name, as on the command line.
@@ -120,6 +125,7 @@ impl FillMethod {
             FillMethod::Rigid => "rigid",
             FillMethod::RigidSpline => "rigid-spline",
             FillMethod::Distance => "distance",
+            FillMethod::PoseMatch => "pose-match",
             FillMethod::Auto => "auto",
         }
     }
@@ -213,6 +219,10 @@ fn fill_with_method(take: &Take, config: &FillConfig) -> Filled {
                 selection: config.selection,
                 ..distance::DistanceConfig::default()
             },
+        ),
+        FillMethod::PoseMatch => pose_match::fill(
+            take,
+            &pose_match::PoseMatchConfig { selection: config.selection, ..pose_match::PoseMatchConfig::default() },
         ),
         FillMethod::Auto => auto::fill(take, &auto::AutoConfig::from_fill(config)).filled,
     }

@@ -8,7 +8,7 @@
 //!     [--seed 0] [--per-length 5] [--blend 2] [--trials 3] [--context 2] [--markers 10]
 //!     [--pca-markers 41] [--pca-context 30] [--pca-fit 500] [--pca-fade 0.5] [--interpolate 100] [--least-squares]
 //!     [--neighbour-trials 2] [--neighbour-weight 0.5] [--score pooled|mean|median]
-//!     [--rigid-cluster 1.0] [--apart 4] [--loose 5] [--no-distance] [--trial-time 0.5]
+//!     [--rigid-cluster 1.0] [--apart 4] [--loose 5] [--no-distance] [--no-pose-match] [--trial-time 0.5]
 //!     [--take-variance 10]
 //! ```
 //!
@@ -56,6 +56,9 @@ fn main() {
     set(get("--blend"), "--blend", &mut config.blend);
     if args.iter().any(|a| a == "--no-distance") {
         config.distance = false;
+    }
+    if args.iter().any(|a| a == "--no-pose-match") {
+        config.pose_match = false;
     }
     if args.iter().any(|a| a == "--least-squares") {
         config.weighting = auto::Weighting::LeastSquares;

@@ -70,12 +70,17 @@ fn ten_minutes_with_two_percent_missing() {
     let (frames, m) = (72_000, hdm.marker_count());
     let (take, gaps) = fill_lengths::long_take(&hdm, frames, 0.02, 7);
     let hidden = frames * m - (0..frames).map(|f| (0..m).filter(|j| take.is_valid(f, *j)).count()).sum::<usize>();
-    for method in [FillMethod::Edm, FillMethod::Auto] {
+    let without_pose_match = locap_clean::auto::AutoConfig { pose_match: false, ..Default::default() };
+    let runs: [(&str, &dyn Fn() -> locap_clean::Filled); 3] = [
+        ("edm", &|| fill_gaps(&take, &FillConfig { method: FillMethod::Edm, ..FillConfig::default() })),
+        ("auto", &|| fill_gaps(&take, &FillConfig { method: FillMethod::Auto, ..FillConfig::default() })),
+        ("auto without pose matching", &|| locap_clean::auto::fill(&take, &without_pose_match).filled),
+    ];
+    for (name, run) in runs {
         let started = Instant::now();
-        let out = fill_gaps(&take, &FillConfig { method, ..FillConfig::default() });
+        let out = run();
         eprintln!(
-            "{}: {frames} frames x {m} markers, {hidden} samples hidden in {gaps} gaps, {} filled in {:.2?} on {} threads",
-            method.name(),
+            "{name}: {frames} frames x {m} markers, {hidden} samples hidden in {gaps} gaps, {} filled in {:.2?} on {} threads",
             out.filled_count(),
             started.elapsed(),
             rayon::current_num_threads()

@@ -36,12 +36,13 @@ fn fill_method(name: &str) -> PyResult<(FillMethod, bool)> {
         "rigid" => (FillMethod::Rigid, false),
         "rigid-spline" => (FillMethod::RigidSpline, false),
         "distance" => (FillMethod::Distance, false),
+        "pose-match" => (FillMethod::PoseMatch, false),
         "auto" => (FillMethod::Auto, false),
         // The refiner starts from EDM's fill.
         "neural" => (FillMethod::Edm, true),
         other => {
             return Err(usage(format!(
-                "method {other:?}: one of edm, linear, spline, pca, pca-aligned, rigid, rigid-spline, distance, auto, neural"
+                "method {other:?}: one of edm, linear, spline, pca, pca-aligned, rigid, rigid-spline, distance, pose-match, auto, neural"
             )));
         }
     })

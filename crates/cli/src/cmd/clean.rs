@@ -81,6 +81,9 @@ pub enum Method {
     /// Distance-constrained smoothing: the steady distances to the neighbours held across
     /// the gap, markers missing together solved together (locap's).
     Distance,
+    /// Pose matching: each missing sample from the frames where the marker's neighbours stood
+    /// in the same shape (locap's).
+    PoseMatch,
     /// Per gap, the method (or blend) that filled trial gaps of the same length best in this
     /// take; recorded per gap in LOCAP:FILLS.
     Auto,
@@ -101,6 +104,7 @@ impl From<Method> for FillMethod {
             Method::Rigid => FillMethod::Rigid,
             Method::RigidSpline => FillMethod::RigidSpline,
             Method::Distance => FillMethod::Distance,
+            Method::PoseMatch => FillMethod::PoseMatch,
             Method::Auto => FillMethod::Auto,
         }
     }
