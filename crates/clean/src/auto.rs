@@ -28,11 +28,9 @@
 //!    [`FillMethod::RigidSpline`] for gaps up to [`AutoConfig::rigid_spline_s`],
 //!    [`FillMethod::Spline`], [`FillMethod::Linear`], [`FillMethod::Distance`] for gaps of at
 //!    least [`AutoConfig::distance_min_s`], [`FillMethod::PoseMatch`] for those too) fills
-//!    each trial; each
-//!    is scored by its
-//!    RMSE over the hidden samples of `i` in each trial, averaged over the trials
-//!    ([`TrialScore::MeanOfTrials`]; a neighbour trial's RMSE counts at a quarter,
-//!    [`AutoConfig::neighbour_weight`]). A sample a candidate leaves missing counts with the
+//!    each trial; each is scored by its RMSE over the hidden samples of `i` in each trial,
+//!    averaged over the trials ([`TrialScore::MeanOfTrials`]; a neighbour trial's RMSE
+//!    counts at a quarter, [`AutoConfig::neighbour_weight`]). A sample a candidate leaves missing counts with the
 //!    error of the reference candidate there (linear inside the take, EDM at its edges), the
 //!    fill it would fall back to;
 //! 3. the real gap is filled with the inverse-squared-RMSE blend of the best
@@ -51,9 +49,8 @@
 //! [`AutoConfig::context_s`] (at least the gap's own length) on each side, and only `i` and
 //! its [`AutoConfig::markers`] best neighbours (ranked once over the whole take,
 //! [`crate::neighbours`]); for PCA and pose matching, up to [`AutoConfig::pca_markers`]
-//! markers (all by default),
-//! the gap's frames and [`AutoConfig::pca_fit_frames`] frames spread evenly over
-//! [`AutoConfig::pca_context_s`] on each side (PCA treats frames as independent samples, and
+//! markers (all by default), the gap's frames and [`AutoConfig::pca_fit_frames`] frames
+//! spread evenly over [`AutoConfig::pca_context_s`] on each side (PCA treats frames as independent samples, and
 //! a covariance settles long before every frame is in it), reconstructing `i` alone
 //! ([`crate::baseline::pca::fill_marker`]). So a gap costs a bounded number of small
 //! eigen-decompositions however long the take, instead of one `3M x 3M` PCA per gapped marker
