@@ -52,6 +52,9 @@ pub struct PoseMatchConfig {
 }
 
 impl Default for PoseMatchConfig {
+    /// Six predictors; the four nearest shapes, all averaged: aligning sixteen and keeping the
+    /// four best aligned cost more and was no better as a candidate of auto
+    /// (docs/benchmarks.md, "Pose matching, an eighth candidate").
     fn default() -> PoseMatchConfig {
         PoseMatchConfig { predictors: 6, shortlist: 4, matches: 4, selection: Selection::Variance }
     }
