@@ -30,7 +30,7 @@
 //! trial gaps before using it, and `locap clean --method pose-match` alone for comparison.
 
 use crate::neighbours::{self, Selection};
-use crate::{Filled, procrustes};
+use crate::{Filled, baseline, procrustes};
 use locap_core::gaps::{Gap, gaps_of};
 use locap_core::{Take, Vec3};
 use std::ops::Range;
@@ -174,11 +174,10 @@ fn fill_gap(take: &Take, out: &mut Filled, marker: usize, gap: Gap, ranked: &[(u
         let far = |f: usize| f.abs_diff(b) > gap.len;
         Some(captured - estimate(b, &far)?)
     };
-    let (before, after) = (gap.start.checked_sub(1), (gap.end() < frames).then_some(gap.end()));
+    let (before, after) = baseline::borders(gap.start, gap.end(), frames);
     let usable = |b: Option<usize>| b.filter(|&b| predictors.iter().all(|&j| take.is_valid(b, j)));
     let (o_before, o_after) = (usable(before).and_then(offset), usable(after).and_then(offset));
     let outside = |f: usize| !(gap.start..gap.end()).contains(&f);
-    let m = out.take.marker_count();
     for t in gap.start..gap.end() {
         let Some(estimated) = estimate(t, &outside) else { continue };
         let correction = match (o_before, o_after) {
@@ -190,9 +189,7 @@ fn fill_gap(take: &Take, out: &mut Filled, marker: usize, gap: Gap, ranked: &[(u
             (None, Some(b)) => b,
             (None, None) => Vec3::zeros(),
         };
-        if out.take.set_position_mm(t, marker, Some(estimated + correction)).is_ok() {
-            out.filled[t * m + marker] = true;
-        }
+        baseline::put(out, t, marker, estimated + correction);
     }
 }
 

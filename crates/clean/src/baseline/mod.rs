@@ -25,7 +25,7 @@ use locap_core::Vec3;
 
 /// Writes a computed sample into `out` and marks it, unless it is not finite (then the sample
 /// stays as it was). Returns whether it was written.
-fn put(out: &mut Filled, frame: usize, marker: usize, p: Vec3) -> bool {
+pub(crate) fn put(out: &mut Filled, frame: usize, marker: usize, p: Vec3) -> bool {
     let m = out.take.marker_count();
     if out.take.set_position_mm(frame, marker, Some(p)).is_ok() {
         out.filled[frame * m + marker] = true;
@@ -37,7 +37,7 @@ fn put(out: &mut Filled, frame: usize, marker: usize, p: Vec3) -> bool {
 
 /// The frame just before `start` and the frame `end`, where they exist in a take of `frames`
 /// frames: the borders of the frame range `start..end`.
-fn borders(start: usize, end: usize, frames: usize) -> (Option<usize>, Option<usize>) {
+pub(crate) fn borders(start: usize, end: usize, frames: usize) -> (Option<usize>, Option<usize>) {
     (start.checked_sub(1), (end < frames).then_some(end))
 }
 
