@@ -963,7 +963,8 @@ impl Context<'_> {
     }
 
     /// The sub-takes of a fill of frames `range` (the real gap or a trial), with
-    /// `hidden(frame, marker)` samples removed.
+    /// `hidden(frame, marker)` samples of frames in `range` removed (it is asked nowhere
+    /// else: what a trial hides lies in its range).
     fn windows(
         &self,
         range: Range<usize>,
@@ -995,8 +996,8 @@ impl Context<'_> {
         wide_frames.extend(range.clone());
         wide_frames.sort_unstable();
         Windows {
-            local: self.window(local_frames, local, hidden),
-            wide: self.window(wide_frames, wide, hidden),
+            local: self.window(local_frames, local, &range, hidden),
+            wide: self.window(wide_frames, wide, &range, hidden),
             edm: std::cell::OnceCell::new(),
             ranked: std::cell::OnceCell::new(),
             edge,
@@ -1014,7 +1015,14 @@ impl Context<'_> {
         let Ok(first) = window.frames.binary_search(&range.start) else { return vec![None; range.len()] };
         let config = self.config;
         let ranked = || windows.ranked.get_or_init(|| self.window_ranking(window, windows.edge));
-        let edm = || windows.edm.get_or_init(|| edm::fill_ranked(&window.take, config.edm_neighbours, ranked()));
+        // Only the range and its borders are read of the EDM fill (by EDM and the distance
+        // fill alike).
+        let near = first..first + range.len();
+        let edm = || {
+            windows
+                .edm
+                .get_or_init(|| edm::fill_ranked_near(&window.take, config.edm_neighbours, ranked(), near.clone()))
+        };
         let filled = match method {
             FillMethod::Edm => edm().clone(),
             FillMethod::Pca | FillMethod::PcaAligned => {
@@ -1103,14 +1111,21 @@ impl Context<'_> {
     }
 
     /// The sub-take of `markers` (the gap's marker first) at `frames` (increasing), with
-    /// `hidden` samples removed.
-    fn window(&self, frames: Vec<usize>, markers: &[usize], hidden: &dyn Fn(usize, usize) -> bool) -> Option<Window> {
+    /// `hidden` samples of frames in `range` removed.
+    fn window(
+        &self,
+        frames: Vec<usize>,
+        markers: &[usize],
+        range: &Range<usize>,
+        hidden: &dyn Fn(usize, usize) -> bool,
+    ) -> Option<Window> {
         let take = self.take;
         let names = markers.iter().map(|j| take.markers()[*j].clone()).collect();
         let mut samples = Vec::with_capacity(frames.len() * markers.len());
         for f in &frames {
+            let hides = range.contains(f);
             for j in markers {
-                samples.push(if hidden(*f, *j) { None } else { take.position_mm(*f, *j) });
+                samples.push(if hides && hidden(*f, *j) { None } else { take.position_mm(*f, *j) });
             }
         }
         let sub = Take::from_samples(names, &samples, take.frame_rate_hz()).ok()?;
@@ -1292,7 +1307,7 @@ mod tests {
         let first = |share: f64| {
             let config = AutoConfig { take_variance_share: share, ..AutoConfig::default() };
             let cx = Context::new(&take, &config);
-            let window = cx.window((0..120).collect(), &[0, 1, 2], &|_, _| false).unwrap();
+            let window = cx.window((0..120).collect(), &[0, 1, 2], &(0..0), &|_, _| false).unwrap();
             cx.window_ranking(&window, Edge::Inside)[0][0].0
         };
         // Window indices: 1 is B, 2 is C.

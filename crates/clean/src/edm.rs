@@ -65,6 +65,7 @@ use locap_core::gaps::{Gap, gaps_of};
 use locap_core::{Take, Vec3};
 use nalgebra::{DMatrix, SymmetricEigen};
 use rayon::prelude::*;
+use std::ops::Range;
 
 /// Variance floor (mm^2) of the alignment weights (see `fill_gap`).
 const STEADY_FLOOR_MM2: f64 = 25.0;
@@ -83,10 +84,40 @@ pub fn fill(take: &Take, k: usize, selection: Selection) -> Filled {
 /// the take's edges, decide which neighbours may carry the marker. One entry per marker of
 /// `take`, every neighbour index below its marker count.
 pub fn fill_ranked(take: &Take, k: usize, ranked: &[Vec<(usize, f64)>]) -> Filled {
+    let all = 0..take.frame_count();
+    fill_passes(take, k, ranked, [all.clone(), all])
+}
+
+/// [`fill_ranked`]'s samples at `frames` and one frame either side, for every marker, at the
+/// cost of the gaps near them: elsewhere gaps may stay missing. What the per-gap choice
+/// ([`crate::auto`]) reads of its sub-takes' EDM fill (the gap and its borders), without
+/// filling every other gap of every marker in them.
+///
+/// The same samples because a gap's fill reads the take only over the gap and its two
+/// borders: the second pass's gaps (what the first left missing) that overlap these frames
+/// read the first pass's fill only over themselves and their borders, so the first pass need
+/// only fill every gap that overlaps that span.
+pub(crate) fn fill_ranked_near(take: &Take, k: usize, ranked: &[Vec<(usize, f64)>], frames: Range<usize>) -> Filled {
+    let count = take.frame_count();
+    let near = frames.start.saturating_sub(1).min(count)..(frames.end + 1).min(count);
+    let mut span = near.clone();
+    for marker in 0..take.marker_count() {
+        for gap in gaps_of((0..count).map(|f| take.is_valid(f, marker))) {
+            if gap.start < near.end && near.start < gap.end() {
+                span.start = span.start.min(gap.start.saturating_sub(1));
+                span.end = span.end.max((gap.end() + 1).min(count));
+            }
+        }
+    }
+    fill_passes(take, k, ranked, [span, near])
+}
+
+/// The two passes of [`fill_ranked`], each filling only the gaps that overlap its frames.
+fn fill_passes(take: &Take, k: usize, ranked: &[Vec<(usize, f64)>], frames: [Range<usize>; 2]) -> Filled {
     let mut out = Filled::unchanged(take);
     let k = k.max(MIN_NEIGHBOURS);
     let m = take.marker_count();
-    for pass in 0..2 {
+    for (pass, frames) in frames.iter().enumerate() {
         // Pass 0 uses captured neighbours only; pass 1 also filled ones. Within a pass every
         // marker reads only the pass's starting state, so markers are filled in parallel and
         // the result does not depend on their order.
@@ -96,7 +127,8 @@ pub fn fill_ranked(take: &Take, k: usize, ranked: &[Vec<(usize, f64)>]) -> Fille
             .enumerate()
             .map(|(marker, ranked)| {
                 let gaps = gaps_of((0..source.frame_count()).map(|f| source.is_valid(f, marker)));
-                (marker, gaps.into_iter().flat_map(|gap| fill_gap(&source, take, marker, gap, ranked, k)).collect())
+                let near = gaps.into_iter().filter(|gap| gap.start < frames.end && frames.start < gap.end());
+                (marker, near.flat_map(|gap| fill_gap(&source, take, marker, gap, ranked, k)).collect())
             })
             .collect();
         for (marker, samples) in fills {
@@ -446,6 +478,34 @@ mod tests {
             let (a, b) = (filled.take.position_mm(f, 0).unwrap(), truth.position_mm(f, 0).unwrap());
             assert!((a - b).norm() < 1e-6, "frame {f}: {a:?} vs {b:?}");
         }
+    }
+
+    /// Around the frames asked for, the restricted fill is the whole fill to the bit, for
+    /// every marker (marker 1's gap overlaps them and reaches beyond, marker 4's lies within),
+    /// and a gap far away is left missing.
+    #[test]
+    fn the_fill_near_some_frames_is_the_whole_fill_there() {
+        let truth = crate::baseline::testing::take_from(300, 6, |f, m| {
+            let t = f as f64 * 0.03 + m as f64;
+            Vec3::new(
+                100.0 * m as f64 + 30.0 * t.sin(),
+                50.0 * (m % 3) as f64 + 20.0 * (1.3 * t).cos(),
+                900.0 + 15.0 * t,
+            )
+        });
+        let mut holed = truth.clone();
+        for (marker, frames) in [(0, 100..140), (1, 130..170), (2, 160..200), (3, 20..50), (4, 138..139)] {
+            crate::baseline::testing::hide(&mut holed, marker, frames);
+        }
+        let ranked = neighbours::rank_scored(&holed, Selection::Variance);
+        let whole = fill_ranked(&holed, 6, &ranked);
+        let near = fill_ranked_near(&holed, 6, &ranked, 100..140);
+        for f in 99..141 {
+            for m in 0..6 {
+                assert_eq!(near.take.position_mm(f, m), whole.take.position_mm(f, m), "frame {f}, marker {m}");
+            }
+        }
+        assert!(whole.take.is_valid(30, 3) && !near.take.is_valid(30, 3));
     }
 
     #[test]
