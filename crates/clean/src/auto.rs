@@ -1058,8 +1058,11 @@ impl Context<'_> {
                 );
             }
             FillMethod::PoseMatch => {
+                // The wide window is its library: it reaches as far as it should, and its
+                // frames, sampled, are no longer evenly spaced in time.
                 let pose = crate::pose_match::PoseMatchConfig {
                     selection: config.selection,
+                    library_s: None,
                     ..crate::pose_match::PoseMatchConfig::default()
                 };
                 let ranked = neighbours::rank_scored_of(&window.take, 0, config.selection);

@@ -13,7 +13,8 @@
 //! 1. *predictors*: `i`'s best [`PoseMatchConfig::predictors`] neighbours (by the ranking
 //!    given, [`crate::neighbours`]) captured at every frame of the gap; with fewer than 3 the
 //!    gap stays missing;
-//! 2. *library*: the frames outside the gap where `i` and every predictor are captured;
+//! 2. *library*: the frames outside the gap, within [`PoseMatchConfig::library_s`] of it
+//!    (30 s), where `i` and every predictor are captured;
 //! 3. for each gap frame `t`, the predictors' shape (their pairwise distances, which do not
 //!    change as the subject turns or moves) is compared with the shape in every library frame;
 //!    of the [`PoseMatchConfig::shortlist`] nearest shapes, each library frame `f` is
@@ -33,6 +34,7 @@ use crate::neighbours::{self, Selection};
 use crate::{Filled, baseline, procrustes};
 use locap_core::gaps::{Gap, gaps_of};
 use locap_core::{Take, Vec3};
+use rayon::prelude::*;
 use std::ops::Range;
 
 /// Smallest alignment RMS (mm) used for a weight: one exact match does not take all the weight.
@@ -49,24 +51,46 @@ pub struct PoseMatchConfig {
     pub matches: usize,
     /// How the predictors are ranked.
     pub selection: Selection,
+    /// How far from a gap (s, each side) its library reaches; `None`: the whole take. Every
+    /// gap frame is compared with every library frame, so on a long take the whole take costs
+    /// time in proportion to its length for little: the nearest poses in time are the likest
+    /// (the same subject, markers not yet slipped).
+    pub library_s: Option<f64>,
 }
 
 impl Default for PoseMatchConfig {
     /// Six predictors; the four nearest shapes, all averaged: aligning sixteen and keeping the
     /// four best aligned cost more and was no better as a candidate of auto
     /// (docs/benchmarks.md, "Pose matching, an eighth candidate").
+    /// The library reaches 30 s each side of a gap, as auto's sub-takes for PCA and pose
+    /// matching do.
     fn default() -> PoseMatchConfig {
-        PoseMatchConfig { predictors: 6, shortlist: 4, matches: 4, selection: Selection::Variance }
+        PoseMatchConfig {
+            predictors: 6,
+            shortlist: 4,
+            matches: 4,
+            selection: Selection::Variance,
+            library_s: Some(30.0),
+        }
     }
 }
 
-/// Fills every gap of every marker of `take`.
+/// Fills every gap of every marker of `take` (markers in parallel: each gap reads only the
+/// take as captured).
 pub fn fill(take: &Take, config: &PoseMatchConfig) -> Filled {
     let ranked = neighbours::rank_scored(take, config.selection);
+    let filled: Vec<(usize, Vec<(usize, Vec3)>)> = ranked
+        .par_iter()
+        .enumerate()
+        .map(|(marker, ranked)| {
+            let gaps = gaps_of((0..take.frame_count()).map(|f| take.is_valid(f, marker)));
+            (marker, gaps.into_iter().flat_map(|gap| fill_gap(take, marker, gap, ranked, config)).collect())
+        })
+        .collect();
     let mut out = Filled::unchanged(take);
-    for (marker, ranked) in ranked.iter().enumerate() {
-        for gap in gaps_of((0..take.frame_count()).map(|f| take.is_valid(f, marker))) {
-            fill_gap(take, &mut out, marker, gap, ranked, config);
+    for (marker, samples) in filled {
+        for (t, p) in samples {
+            baseline::put(&mut out, t, marker, p);
         }
     }
     out
@@ -85,12 +109,21 @@ pub fn fill_marker(
     let mut out = Filled::unchanged(take);
     let gaps = gaps_of((0..take.frame_count()).map(|f| take.is_valid(f, marker)));
     for gap in gaps.into_iter().filter(|g| g.start < only.end && only.start < g.end()) {
-        fill_gap(take, &mut out, marker, gap, ranked, config);
+        for (t, p) in fill_gap(take, marker, gap, ranked, config) {
+            baseline::put(&mut out, t, marker, p);
+        }
     }
     out
 }
 
-fn fill_gap(take: &Take, out: &mut Filled, marker: usize, gap: Gap, ranked: &[(usize, f64)], config: &PoseMatchConfig) {
+/// The fill `(frame, position)` of one gap of `marker`.
+fn fill_gap(
+    take: &Take,
+    marker: usize,
+    gap: Gap,
+    ranked: &[(usize, f64)],
+    config: &PoseMatchConfig,
+) -> Vec<(usize, Vec3)> {
     let frames = take.frame_count();
     let predictors: Vec<usize> = ranked
         .iter()
@@ -100,18 +133,27 @@ fn fill_gap(take: &Take, out: &mut Filled, marker: usize, gap: Gap, ranked: &[(u
         .collect();
     let p = predictors.len();
     if p < 3 {
-        return;
+        return Vec::new();
     }
+    // The library's reach, at least the borders.
+    let reach = config
+        .library_s
+        .filter(|s| s.is_finite() && *s >= 0.0)
+        .map_or(frames, |s| (s * take.frame_rate_hz()).round() as usize)
+        .max(1);
+    let span = gap.start.saturating_sub(reach)..gap.end().saturating_add(reach).min(frames);
     let library: Vec<usize> =
-        (0..frames).filter(|&f| take.is_valid(f, marker) && predictors.iter().all(|&j| take.is_valid(f, j))).collect();
+        span.clone().filter(|&f| take.is_valid(f, marker) && predictors.iter().all(|&j| take.is_valid(f, j))).collect();
     if library.is_empty() {
-        return;
+        return Vec::new();
     }
-    // The predictors' positions in every frame, flat (zero where not captured: never read).
-    let positions: Vec<Vec3> = (0..frames)
+    // The predictors' positions in every frame of the span, flat (zero where not captured:
+    // never read).
+    let positions: Vec<Vec3> = span
+        .clone()
         .flat_map(|f| predictors.iter().map(move |&j| take.position_mm(f, j).unwrap_or_else(Vec3::zeros)))
         .collect();
-    let at = |f: usize| &positions[f * p..(f + 1) * p];
+    let at = |f: usize| &positions[(f - span.start) * p..(f - span.start + 1) * p];
     let pairs = p * (p - 1) / 2;
     let shape_into = |points: &[Vec3], d: &mut Vec<f64>| {
         d.clear();
@@ -178,6 +220,7 @@ fn fill_gap(take: &Take, out: &mut Filled, marker: usize, gap: Gap, ranked: &[(u
     let usable = |b: Option<usize>| b.filter(|&b| predictors.iter().all(|&j| take.is_valid(b, j)));
     let (o_before, o_after) = (usable(before).and_then(offset), usable(after).and_then(offset));
     let outside = |f: usize| !(gap.start..gap.end()).contains(&f);
+    let mut samples = Vec::with_capacity(gap.len);
     for t in gap.start..gap.end() {
         let Some(estimated) = estimate(t, &outside) else { continue };
         let correction = match (o_before, o_after) {
@@ -189,8 +232,9 @@ fn fill_gap(take: &Take, out: &mut Filled, marker: usize, gap: Gap, ranked: &[(u
             (None, Some(b)) => b,
             (None, None) => Vec3::zeros(),
         };
-        baseline::put(out, t, marker, estimated + correction);
+        samples.push((t, estimated + correction));
     }
+    samples
 }
 
 #[cfg(test)]
@@ -238,6 +282,24 @@ mod tests {
 
     /// With fewer than three predictors captured throughout the gap, or no frame where all are
     /// captured with the marker, the gap stays missing.
+    /// The library reaches `library_s` each side of the gap: 2 s holds several cycles, no
+    /// reach at all only the two borders, whose poses are not the gap's.
+    #[test]
+    fn the_library_reaches_as_far_as_it_is_told() {
+        let truth = cyclic(700);
+        let mut holed = truth.clone();
+        hide(&mut holed, 4, 300..420);
+        let worst = |library_s: Option<f64>| {
+            let out = fill(&holed, &PoseMatchConfig { library_s, ..PoseMatchConfig::default() });
+            assert_eq!(check_mask(&holed, &out), 120);
+            (300..420)
+                .map(|f| (out.take.position_mm(f, 4).unwrap() - truth.position_mm(f, 4).unwrap()).norm())
+                .fold(0.0, f64::max)
+        };
+        assert!(worst(Some(2.0)) < 1.0, "2 s: {} mm", worst(Some(2.0)));
+        assert!(worst(Some(0.0)) > 10.0, "borders only: {} mm", worst(Some(0.0)));
+    }
+
     #[test]
     fn without_predictors_or_library_the_gap_stays() {
         let truth = cyclic(200);
