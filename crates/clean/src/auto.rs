@@ -110,6 +110,11 @@
 //!   about one of them than the other three. The ratio (4) and the loosest third partner
 //!   (5 mm) were set from the caps' distances before measuring; another subject of the
 //!   62-marker set was the held-out check (docs/benchmarks.md).
+//!   The partners are the steadiest that can carry the marker, captured through the gap: one
+//!   missing in it gives way to the next. Where no three are captured throughout but at
+//!   least three of the strict limit's are at every frame (a box of eight markers whose
+//!   markers the cameras lose in turn, another lab's take), the marker is carried frame by
+//!   frame with whichever are captured (`Context::cluster_fill`).
 //! - The real gap's fill has no truth to check it against, so its samples are checked for
 //!   plausibility: a blended candidate's sample must keep the marker's distance to at least
 //!   half of its [`PLAUSIBILITY_NEIGHBOURS`] best neighbours captured there within what the
@@ -162,7 +167,7 @@
 //! - Unlabeled points (`*N`) are not filled, as in [`crate::fill_gaps`].
 
 use crate::neighbours::{self, Selection};
-use crate::{FillMethod, Filled, baseline, edm};
+use crate::{FillMethod, Filled, baseline, edm, procrustes};
 use locap_core::gaps::{Gap, gaps_of};
 use locap_core::{Take, Vec3};
 use rayon::prelude::*;
@@ -652,7 +657,12 @@ impl Context<'_> {
         } else {
             scores.iter().map(|(c, _)| *c).collect()
         };
-        let cluster = self.rides_a_rigid_cluster(marker, gap, edge);
+        // A cluster whose partners are hidden in turn (a box of eight markers, one or two
+        // missing at any time) carries the marker with whichever are captured, frame by
+        // frame.
+        let in_turn =
+            if self.rides_a_rigid_cluster(marker, gap, edge) { None } else { self.cluster_in_turn(marker, gap, edge) };
+        let cluster = in_turn.is_some() || self.rides_a_rigid_cluster(marker, gap, edge);
         let chosen: Vec<FillMethod> = if cluster {
             vec![FillMethod::Rigid]
         } else {
@@ -681,7 +691,10 @@ impl Context<'_> {
         let none = |_: usize, _: usize| false;
         let windows = self.windows(range.clone(), edge, &local, &wide, &none);
         let run = |c: FillMethod| self.candidate(c, &windows);
-        let fills: Vec<Vec<Option<Vec3>>> = chosen.iter().map(|c| run(*c)).collect();
+        let fills: Vec<Vec<Option<Vec3>>> = match &in_turn {
+            Some(partners) => vec![self.cluster_fill(marker, gap, partners)],
+            None => chosen.iter().map(|c| run(*c)).collect(),
+        };
         // The fallback where no chosen candidate filled a frame, and at edges the support.
         let fallback: Option<Vec<Option<Vec3>>> = match chosen.iter().position(|c| *c == reference) {
             Some(k) => Some(fills[k].clone()),
@@ -873,10 +886,11 @@ impl Context<'_> {
         (span.start.min(frames)..span.end.min(frames)).all(|f| self.take.is_valid(f, j))
     }
 
-    /// Whether `marker` and its three steadiest neighbours form a rigid cluster
-    /// ([`AutoConfig::rigid_cluster_mm`], or looser but set apart from the rest of the body,
-    /// [`AutoConfig::rigid_cluster_apart`]) whose other three are captured throughout `gap`
-    /// and its borders, and with `marker` in at least as many frames as the gap is long.
+    /// Whether `marker` and its three steadiest neighbours captured throughout `gap` and its
+    /// borders, and with `marker` in at least as many frames as the gap is long, form a rigid
+    /// cluster ([`AutoConfig::rigid_cluster_mm`], or looser but set apart from the rest of
+    /// the body, [`AutoConfig::rigid_cluster_apart`], the next steadiest neighbour of all
+    /// being that many times less steady).
     ///
     /// The last because a cluster's steadiness is only shown over the frames where it was
     /// seen: a knee marker seen in 38 frames of a 238-frame walk, around a 2 s gap, kept its
@@ -892,14 +906,70 @@ impl Context<'_> {
         let mut spread_mm: Vec<(usize, f64)> =
             self.ranked[marker].iter().filter(|(_, v)| v.is_finite()).map(|&(j, v)| (j, v.sqrt())).collect();
         spread_mm.sort_by(|a, b| a.1.total_cmp(&b.1));
-        let Some(&(_, third)) = spread_mm.get(CLUSTER_PARTNERS - 1) else { return false };
+        // The partners that can carry the marker through: a steady partner missing in the gap
+        // carries nothing, and the next steadiest that is captured takes its place (a box of
+        // eight markers carries one of them through a gap in another).
+        let carries = |j: usize| self.captured_around(j, gap, edge) && self.seen_together(marker, j, gap.len);
+        let Some(third_at) =
+            spread_mm.iter().enumerate().filter(|(_, (j, _))| carries(*j)).map(|(k, _)| k).nth(CLUSTER_PARTNERS - 1)
+        else {
+            return false;
+        };
+        let third = spread_mm[third_at].1;
         let set_apart = config.rigid_cluster_apart > 0.0
             && third <= config.rigid_cluster_loose_mm
-            && spread_mm.get(CLUSTER_PARTNERS).is_some_and(|&(_, fourth)| fourth >= config.rigid_cluster_apart * third);
-        (third <= config.rigid_cluster_mm || set_apart)
-            && spread_mm[..CLUSTER_PARTNERS]
-                .iter()
-                .all(|(j, _)| self.captured_around(*j, gap, edge) && self.seen_together(marker, *j, gap.len))
+            && spread_mm.get(third_at + 1).is_some_and(|&(_, fourth)| fourth >= config.rigid_cluster_apart * third);
+        third <= config.rigid_cluster_mm || set_apart
+    }
+
+    /// The partners of `marker` on a rigid cluster by the strict limit
+    /// ([`AutoConfig::rigid_cluster_mm`]), each captured with it in at least as many frames as
+    /// `gap` is long, where at least three of them are captured at every frame of `gap` and
+    /// its two borders but not the same three throughout (else [`Self::rides_a_rigid_cluster`]
+    /// holds): a box or a plate whose markers the cameras lose in turn. Inside the take only.
+    fn cluster_in_turn(&self, marker: usize, gap: Gap, edge: Edge) -> Option<Vec<usize>> {
+        if edge != Edge::Inside || self.config.rigid_cluster_mm <= 0.0 {
+            return None;
+        }
+        let limit = self.config.rigid_cluster_mm * self.config.rigid_cluster_mm;
+        let partners: Vec<usize> = self.ranked[marker]
+            .iter()
+            .filter(|(_, v)| *v <= limit)
+            .map(|(j, _)| *j)
+            .filter(|&j| self.seen_together(marker, j, gap.len))
+            .collect();
+        let span = captured_span(edge, gap.start, gap.len);
+        let frames = self.take.frame_count();
+        let enough = |f: usize| partners.iter().filter(|&&j| self.take.is_valid(f, j)).count() >= CLUSTER_PARTNERS;
+        (span.end <= frames && span.clone().all(enough)).then_some(partners)
+    }
+
+    /// The fill of `gap` carried from each border with the cluster `partners` captured both
+    /// there and at the frame (a rigid fill whose donors change with what is captured),
+    /// the two carries blended linearly across the gap as the rigid fill blends them.
+    fn cluster_fill(&self, marker: usize, gap: Gap, partners: &[usize]) -> Vec<Option<Vec3>> {
+        let take = self.take;
+        let (before, after) = baseline::borders(gap.start, gap.end(), take.frame_count());
+        let carry = |b: usize, t: usize| -> Option<Vec3> {
+            let own = take.position_mm(b, marker)?;
+            let both: Vec<usize> =
+                partners.iter().copied().filter(|&j| take.is_valid(t, j) && take.is_valid(b, j)).collect();
+            let from: Vec<Vec3> = both.iter().map(|&j| take.position_mm(b, j)).collect::<Option<_>>()?;
+            let to: Vec<Vec3> = both.iter().map(|&j| take.position_mm(t, j)).collect::<Option<_>>()?;
+            Some(procrustes::align(&from, &to)?.apply(&own))
+        };
+        (gap.start..gap.end())
+            .map(|t| match (before, after) {
+                (Some(b0), Some(b1)) => match (carry(b0, t), carry(b1, t)) {
+                    (Some(p0), Some(p1)) => {
+                        let w = (t - b0) as f64 / (b1 - b0) as f64;
+                        Some(p0 * (1.0 - w) + p1 * w)
+                    }
+                    (p0, p1) => p0.or(p1),
+                },
+                (b0, b1) => b0.or(b1).and_then(|b| carry(b, t)),
+            })
+            .collect()
     }
 
     /// Whether markers `a` and `b` are captured together in at least `frames` frames.
@@ -1447,6 +1517,25 @@ mod tests {
         hide(&mut holed, 0, 110..190);
         let out = fill(&holed, &AutoConfig::default());
         assert_eq!(out.choices[0].weights, vec![(FillMethod::Rigid, 1.0)], "{}", out.choices[0].method());
+    }
+
+    /// A box whose markers the cameras lose in turn: no three partners are captured through
+    /// the gap, but at least three at every frame, and those carry the marker exactly.
+    #[test]
+    fn a_cluster_whose_markers_are_lost_in_turn_carries_the_marker() {
+        let truth = cluster(900, |i| format!("M{i}"));
+        let mut holed = truth.clone();
+        hide(&mut holed, 0, 300..360);
+        for (partner, frames) in [(1, 305..315), (2, 320..330), (3, 335..345)] {
+            hide(&mut holed, partner, frames);
+        }
+        let out = fill(&holed, &AutoConfig::default());
+        let choice = out.choices.iter().find(|c| c.marker == 0).expect("marker 0's gap");
+        assert_eq!(choice.weights, vec![(FillMethod::Rigid, 1.0)], "{}", choice.method());
+        for f in 300..360 {
+            let (got, want) = (out.filled.take.position_mm(f, 0).unwrap(), truth.position_mm(f, 0).unwrap());
+            assert!((got - want).norm() < 1e-6, "frame {f}: {got:?} vs {want:?}");
+        }
     }
 
     /// A cluster of four that wobbles by a few millimetres (a head cap), set apart from the
