@@ -49,7 +49,7 @@
 //! [`AutoConfig::context_s`] (at least the gap's own length) on each side, and only `i` and
 //! its [`AutoConfig::markers`] best neighbours (ranked once over the whole take,
 //! [`crate::neighbours`]); for PCA and pose matching, up to [`AutoConfig::pca_markers`]
-//! markers (all by default), the gap's frames and [`AutoConfig::pca_fit_frames`] frames
+//! markers (the 41 nearest), the gap's frames and [`AutoConfig::pca_fit_frames`] frames
 //! spread evenly over [`AutoConfig::pca_context_s`] on each side (PCA treats frames as independent samples, and
 //! a covariance settles long before every frame is in it), reconstructing `i` alone
 //! ([`crate::baseline::pca::fill_marker`]). So a gap costs a bounded number of small
@@ -272,8 +272,12 @@ pub struct AutoConfig {
     pub rigid_spline_s: f64,
     /// Neighbours of the marker in the sub-takes of EDM, rigid, spline and linear.
     pub markers: usize,
-    /// Most markers (the gap's marker included) the PCA candidate sees, nearest first
-    /// (`usize::MAX`: all).
+    /// Most markers (the gap's marker included) the PCA candidate and pose matching see,
+    /// nearest first (`usize::MAX`: all). 41, a full-body set's size: PCA's cost grows with
+    /// the cube of its markers, and beyond the nearest 41 they carry almost no weight
+    /// (`exp(-d^2 / 2 sigma^2)`, sigma 200 mm); on larger sets the fill took a quarter to a
+    /// half less time and was as accurate within the seed-to-seed spread
+    /// (docs/benchmarks.md, "PCA on the 41 nearest markers").
     pub pca_markers: usize,
     /// EDM's neighbour count `K`.
     pub edm_neighbours: usize,
@@ -363,7 +367,7 @@ impl Default for AutoConfig {
             interpolate_s: 100.0,
             rigid_spline_s: 0.5,
             markers: 10,
-            pca_markers: usize::MAX,
+            pca_markers: 41,
             edm_neighbours: 6,
             selection: Selection::Variance,
             take_variance_share: 10.0,

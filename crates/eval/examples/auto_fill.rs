@@ -4,7 +4,7 @@
 //!
 //! ```text
 //! cargo run -p locap-eval --release --example auto_fill -- [--takes 85_02,85_12,135_02,hdm05,kneel,rolling]
-//!     (or another lab's: hamner,rajrun,rajwalk,sprint)
+//!     (or another lab's: hamner,rajrun,rajwalk,sprint,vicon)
 //!     [--seed 0] [--per-length 5] [--blend 2] [--trials 3] [--context 2] [--markers 10]
 //!     [--pca-markers 41] [--pca-context 30] [--pca-fit 500] [--pca-fade 0.5] [--interpolate 100] [--least-squares]
 //!     [--neighbour-trials 2] [--neighbour-weight 0.5] [--score pooled|mean|median]
@@ -36,6 +36,9 @@ fn path_of(name: &str) -> String {
         "rajrun" => "trc/Pipelines_Rajagopal_ExpData_motion_capture_run.trc".to_string(),
         "rajwalk" => "trc/Pipelines_Rajagopal_ExpData_motion_capture_walk.trc".to_string(),
         "sprint" => "trc/SprintMotion.trc".to_string(),
+        // Another lab and marker set again (a Vicon Nexus upper-limb set lifting a box of
+        // eight markers), first measured in session 2026-12-06 (5).
+        "vicon" => "c3d-vendors/Vicon.c3d".to_string(),
         other => format!("cmu-c3d/{other}.c3d"),
     }
 }
