@@ -664,9 +664,9 @@ impl Context<'_> {
         // A cluster whose partners are hidden in turn (a box of eight markers, one or two
         // missing at any time) carries the marker with whichever are captured, frame by
         // frame.
-        let in_turn =
-            if self.rides_a_rigid_cluster(marker, gap, edge) { None } else { self.cluster_in_turn(marker, gap, edge) };
-        let cluster = in_turn.is_some() || self.rides_a_rigid_cluster(marker, gap, edge);
+        let rides = self.rides_a_rigid_cluster(marker, gap, edge);
+        let in_turn = if rides { None } else { self.cluster_in_turn(marker, gap, edge) };
+        let cluster = rides || in_turn.is_some();
         let chosen: Vec<FillMethod> = if cluster {
             vec![FillMethod::Rigid]
         } else {
