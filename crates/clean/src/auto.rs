@@ -963,15 +963,13 @@ impl Context<'_> {
             Some(procrustes::align(&from, &to)?.apply(&own))
         };
         (gap.start..gap.end())
-            .map(|t| match (before, after) {
-                (Some(b0), Some(b1)) => match (carry(b0, t), carry(b1, t)) {
-                    (Some(p0), Some(p1)) => {
-                        let w = (t - b0) as f64 / (b1 - b0) as f64;
-                        Some(p0 * (1.0 - w) + p1 * w)
-                    }
-                    (p0, p1) => p0.or(p1),
-                },
-                (b0, b1) => b0.or(b1).and_then(|b| carry(b, t)),
+            .map(|t| {
+                // The later border's weight (used only where both borders carry).
+                let w = match (before, after) {
+                    (Some(b0), Some(b1)) => (t - b0) as f64 / (b1 - b0) as f64,
+                    _ => 0.0,
+                };
+                edm::across(before.and_then(|b| carry(b, t)), after.and_then(|b| carry(b, t)), w)
             })
             .collect()
     }

@@ -338,7 +338,7 @@ impl BorderMatrices {
 
 /// What is known at the two borders, blended across the gap with the later border's weight
 /// `w`; where only one border has it, that one.
-fn across<T>(before: Option<T>, after: Option<T>, w: f64) -> Option<T>
+pub(crate) fn across<T>(before: Option<T>, after: Option<T>, w: f64) -> Option<T>
 where
     T: std::ops::Mul<f64, Output = T> + std::ops::Add<Output = T>,
 {
