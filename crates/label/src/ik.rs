@@ -49,7 +49,7 @@ use argmin::solver::linesearch::MoreThuenteLineSearch;
 use argmin::solver::quasinewton::BFGS;
 use locap_core::skeleton::forward_kinematics;
 use locap_core::{Joint, Quat, Skeleton, Vec3};
-use nalgebra::{DMatrix, DVector, Matrix3};
+use nalgebra::{DMatrix, DVector, Matrix3, Rotation3};
 
 /// Where a marker sits on the skeleton.
 #[derive(Debug, Clone, PartialEq)]
@@ -126,11 +126,12 @@ impl JointDofs {
     /// The rotation of `angles_rad` about the axes, one angle per axis, applied in the listed
     /// order (the first axis first to a vector: `exp(a_n t_n) ... exp(a_1 t_1)`), as an ASF's
     /// `dof rx rz` values turn a bone; `None` for [`JointDofs::Free`] or another angle count.
-    /// Ranges are not applied. The pose fit parametrises a joint by one rotation vector in the
-    /// axes' span instead: the same rotations for one axis and for three (there the ranges bound
-    /// the vector's components, not these angles); for two, the rotations whose axis lies in
-    /// the plane of the two, which differ from these by a turn about the third direction of
-    /// second order in the angles.
+    /// Ranges are not applied. The pose fit parametrises a joint by one rotation vector
+    /// instead, held to these rotations ([`Locked`]): within the axes' span for one axis and
+    /// for three (there the ranges bound the vector's components, not these angles); for two,
+    /// on the products themselves, whose rotation vectors leave the plane of the two axes by a
+    /// turn about the third direction that grows with the angles (22 degrees at a CMU hand
+    /// bent 60 degrees and turned 45).
     pub fn rotation(&self, angles_rad: &[f64]) -> Option<Quat> {
         let JointDofs::Axes(axes) = self else { return None };
         if axes.len() != angles_rad.len() {
@@ -150,6 +151,51 @@ pub struct DofAxis {
     pub min_rad: f64,
     /// Largest rotation about it (rad).
     pub max_rad: f64,
+}
+
+/// What a joint's axes forbid of its rotation `exp(v)`: each a residual, zero where the
+/// rotation is one the axes make ([`JointDofs::rotation`]), about the angle it is off by.
+#[derive(Debug, Clone, PartialEq)]
+enum Locked {
+    /// Directions of the rotation vector that no axis allows (none for a free joint or three
+    /// axes, two for one axis, the whole space for none): the residuals are `v`'s components
+    /// along them.
+    Directions(Vec<Vec3>),
+    /// Two axes, `first` turning a vector first: `R = exp(second t2) exp(first t1)`. Such an
+    /// `R` keeps `first`'s angle to `second` (`second . R first = second . first`), and a
+    /// rotation that keeps it is one of them: `R first` lies on the cone about `second` that
+    /// `first` sweeps, which a turn about `second` reaches, and what remains turns about
+    /// `first`. So one residual, `second . R first - second . first` (zero on the products,
+    /// about the angle off them near them), holds the fit on them exactly; the rotation
+    /// vectors of the products do not lie in the axes' plane.
+    Product { first: Vec3, second: Vec3 },
+}
+
+impl Locked {
+    fn of(dofs: &JointDofs) -> Locked {
+        match dofs {
+            JointDofs::Free => Locked::Directions(Vec::new()),
+            JointDofs::Axes(axes) => match axes.as_slice() {
+                [a, b] if a.axis.normalize().cross(&b.axis.normalize()).norm() > 1e-6 => {
+                    Locked::Product { first: a.axis.normalize(), second: b.axis.normalize() }
+                }
+                _ => Locked::Directions(locked_directions(axes)),
+            },
+        }
+    }
+
+    /// The residuals at rotation vector `v` and, per residual, its gradient in `v`.
+    fn residuals(&self, v: &Vec3) -> Vec<(f64, Vec3)> {
+        match self {
+            Locked::Directions(dirs) => dirs.iter().map(|d| (d.dot(v), *d)).collect(),
+            Locked::Product { first, second } => {
+                let r = Rotation3::from_scaled_axis(*v).into_inner();
+                // exp(v + d) = exp(v) exp(J_r d): R first moves by -R [first]x J_r d.
+                let gradient = -(second.transpose() * r * skew(first) * right_jacobian(v)).transpose();
+                vec![(second.dot(&(r * first)) - second.dot(first), gradient)]
+            }
+        }
+    }
 }
 
 /// Directions of a joint's rotation vector that no axis allows: an orthonormal basis of the
@@ -572,8 +618,8 @@ struct PoseProblem<'a> {
     history: Option<(&'a [f64], &'a [f64])>,
     /// Per-frame decay of the pose velocity the smoothness term expects.
     damping: f64,
-    /// Per joint, the directions its axes do not allow ([`locked_directions`]).
-    locked: &'a [Vec<Vec3>],
+    /// Per joint, what its axes do not allow.
+    locked: &'a [Locked],
     /// The prior pose's parameters (its root block unused), when set.
     prior: Option<&'a [f64]>,
 }
@@ -607,7 +653,7 @@ impl PoseProblem<'_> {
             .map(|(v, &j)| match &self.model.dofs[j] {
                 JointDofs::Axes(axes) if j != 0 => {
                     let v = Vec3::new(v[0], v[1], v[2]);
-                    locked += self.locked[j].iter().map(|c| c.dot(&v).powi(2)).sum::<f64>();
+                    locked += self.locked[j].residuals(&v).iter().map(|(r, _)| r * r).sum::<f64>();
                     rest += v.norm_squared();
                     axes.iter().map(|a| axis_excess(a, &v).powi(2)).sum::<f64>()
                 }
@@ -791,10 +837,10 @@ impl PoseProblem<'_> {
                             }
                         }
                     }
-                    for (c, dir) in self.locked[j].iter().enumerate() {
-                        r[row + 3 + c] = lk * dir.dot(&v);
+                    for (c, (residual, gradient)) in self.locked[j].residuals(&v).into_iter().enumerate() {
+                        r[row + 3 + c] = lk * residual;
                         for d in 0..3 {
-                            jac[(row + 3 + c, b + d)] = lk * dir[d];
+                            jac[(row + 3 + c, b + d)] = lk * gradient[d];
                         }
                     }
                 }
@@ -969,8 +1015,8 @@ pub struct PoseTracker {
     /// Poses of the last two frames, newest first.
     history: Vec<Vec<f64>>,
     damping: f64,
-    /// Per joint, the rotation directions its axes do not allow.
-    locked: Vec<Vec<Vec3>>,
+    /// Per joint, what its axes do not allow.
+    locked: Vec<Locked>,
     /// The prior pose of the next fit ([`PoseTracker::set_prior`]).
     prior: Option<Vec<f64>>,
 }
@@ -979,14 +1025,7 @@ impl PoseTracker {
     /// A tracker for `model` on a take recorded at `frame_rate_hz`.
     pub fn new(model: MarkerModel, config: IkConfig, frame_rate_hz: f64) -> PoseTracker {
         let damping = (-1.0 / (frame_rate_hz * config.velocity_time_constant_s)).exp();
-        let locked = model
-            .dofs
-            .iter()
-            .map(|d| match d {
-                JointDofs::Free => Vec::new(),
-                JointDofs::Axes(axes) => locked_directions(axes),
-            })
-            .collect();
+        let locked = model.dofs.iter().map(Locked::of).collect();
         PoseTracker { model, config, history: Vec::new(), damping, locked, prior: None }
     }
 
@@ -1842,16 +1881,32 @@ pub(crate) mod tests {
         observed: &'a [Option<Vec3>],
         predicted: &'a [Option<(Vec3, f64)>],
         history: Option<(&'a [f64], &'a [f64])>,
-        locked: &'a [Vec<Vec3>],
+        locked: &'a [Locked],
     ) -> PoseProblem<'a> {
         PoseProblem { model, config, observed, predicted, history, damping: 0.9, locked, prior: None }
     }
 
+    /// [`hinged_arm`] with a shoulder that turns about two axes only, as a CMU hand does.
+    fn two_axis_shoulder() -> MarkerModel {
+        let hinge = JointDofs::Axes(vec![DofAxis { axis: Vec3::z(), min_rad: 0.0, max_rad: 2.0 }]);
+        let two = JointDofs::Axes(vec![
+            DofAxis { axis: Vec3::x(), min_rad: -1.5, max_rad: 1.5 },
+            DofAxis { axis: Vec3::new(0.0, 0.3, 1.0).normalize(), min_rad: -1.0, max_rad: 1.0 },
+        ]);
+        arm_model().with_dofs(vec![JointDofs::Free, two, hinge, JointDofs::Free]).unwrap()
+    }
+
     #[test]
     fn residuals_are_the_energy_and_the_jacobian_its_derivative() {
+        for arm in [hinged_arm(), two_axis_shoulder()] {
+            residuals_are_the_energy_and_the_jacobian_its_derivative_on(arm);
+        }
+    }
+
+    fn residuals_are_the_energy_and_the_jacobian_its_derivative_on(arm: MarkerModel) {
         // The forearm follows the upper arm (a coupling's rows are checked too).
         // The prior holds each joint by its own weight (rows checked too).
-        let model = hinged_arm()
+        let model = arm
             .with_couplings(vec![JointCoupling { joint: 2, leader: 1, ratio: 0.6 }])
             .unwrap()
             .with_prior_weights(vec![1.0, 4.0, 0.5, 1.0])
@@ -2127,6 +2182,42 @@ pub(crate) mod tests {
         assert!(near < 22.0 && near > centred + 5.0, "{near:.1} mm within 20");
         assert!(model.clone().with_joint_centres(vec![JointCentre { joint: 3, markers: vec![] }]).is_err());
         assert!(model.with_joint_centres(vec![JointCentre { joint: 9, markers: vec![0] }]).is_err());
+    }
+
+    /// A two-axis joint is held on the products of its two turns, not on the rotation vectors
+    /// in their plane: a large bend and turn (a CMU hand's 60 and -45 degrees) costs nothing,
+    /// and a turn off them costs.
+    #[test]
+    fn a_two_axis_joint_is_held_on_the_products_of_its_turns() {
+        let axes = vec![
+            DofAxis { axis: Vec3::x(), min_rad: -2.0, max_rad: 2.0 },
+            DofAxis { axis: Vec3::z(), min_rad: -2.0, max_rad: 2.0 },
+        ];
+        let dofs = JointDofs::Axes(axes.clone());
+        let locked = Locked::of(&dofs);
+        assert!(matches!(locked, Locked::Product { .. }));
+        let off =
+            |q: Quat| -> f64 { locked.residuals(&q.scaled_axis()).iter().map(|(r, _)| r * r).sum::<f64>().sqrt() };
+        let product = dofs.rotation(&[-45f64.to_radians(), 60f64.to_radians()]).unwrap();
+        assert!(off(product) < 1e-12, "{}", off(product));
+        // Its rotation vector leaves the plane of the two axes far: the plane alone could not
+        // reach it.
+        assert!(product.scaled_axis().y.abs() > 0.2, "{:?}", product.scaled_axis());
+        let twisted = product * Quat::from_axis_angle(&Vec3::y_axis(), 0.1);
+        // Here the residual is sin(0.1) cos(45 degrees): the turn seen through the second axis.
+        assert!((off(twisted) - 0.1f64.sin() * 45f64.to_radians().cos()).abs() < 1e-9, "{}", off(twisted));
+        // The gradient is the residual's derivative.
+        let v = twisted.scaled_axis();
+        let (_, gradient) = locked.residuals(&v)[0];
+        for d in 0..3 {
+            let mut step = Vec3::zeros();
+            step[d] = 1e-6;
+            let numeric = (locked.residuals(&(v + step))[0].0 - locked.residuals(&(v - step))[0].0) / 2e-6;
+            assert!((numeric - gradient[d]).abs() < 1e-6, "{d}: {numeric} vs {}", gradient[d]);
+        }
+        // One axis and three keep the span's directions.
+        assert!(matches!(Locked::of(&JointDofs::Axes(axes[..1].to_vec())), Locked::Directions(d) if d.len() == 2));
+        assert!(matches!(Locked::of(&JointDofs::Free), Locked::Directions(d) if d.is_empty()));
     }
 
     #[test]
