@@ -105,8 +105,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         },
     };
     // `SKELETON_ASF`: the CMU solver on that ASF's bones (joints matched by name; the others,
-    // the end sites among them, keep the template's), without wrist centres: the subject's
-    // own skeleton, as a studio solves onto its calibrated one (bones held with `BONE_PRIOR`).
+    // the end sites among them, keep the template's), wrist centres as in the default: the
+    // subject's own skeleton, as a studio solves onto its calibrated one (bones held with
+    // `BONE_PRIOR`).
     if let Ok(path) = std::env::var("SKELETON_ASF") {
         let asf = locap_io::asf_amc::read_asf_path(Path::new(&path))?;
         let own = asf.to_skeleton(asf.mm_per_unit())?;
@@ -122,9 +123,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             })
             .collect();
         let skeleton = locap_core::Skeleton::new(joints)?;
-        let cfg = solver.config;
-        solver = KinematicSolver::cmu41_on(&skeleton, &shipped.meta.rotating)?.without_joint_centres();
-        solver.config = cfg;
+        solver = KinematicSolver::cmu41_on(&skeleton, &shipped.meta.rotating)?;
     }
     config(&mut solver);
     let cleaned =

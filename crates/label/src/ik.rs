@@ -184,17 +184,19 @@ impl Locked {
         }
     }
 
-    /// The residuals at rotation vector `v` and, per residual, its gradient in `v`.
-    fn residuals(&self, v: &Vec3) -> Vec<(f64, Vec3)> {
-        match self {
-            Locked::Directions(dirs) => dirs.iter().map(|d| (d.dot(v), *d)).collect(),
+    /// The residuals at rotation vector `v` and, per residual, its gradient in `v` (no
+    /// allocation: every pose-fit iteration asks each joint).
+    fn residuals<'a>(&'a self, v: &'a Vec3) -> impl Iterator<Item = (f64, Vec3)> + 'a {
+        let (dirs, product) = match self {
+            Locked::Directions(dirs) => (dirs.as_slice(), None),
             Locked::Product { first, second } => {
                 let r = Rotation3::from_scaled_axis(*v).into_inner();
                 // exp(v + d) = exp(v) exp(J_r d): R first moves by -R [first]x J_r d.
                 let gradient = -(second.transpose() * r * skew(first) * right_jacobian(v)).transpose();
-                vec![(second.dot(&(r * first)) - second.dot(first), gradient)]
+                (&[][..], Some((second.dot(&(r * first)) - second.dot(first), gradient)))
             }
-        }
+        };
+        dirs.iter().map(|d| (d.dot(v), *d)).chain(product)
     }
 }
 
@@ -653,7 +655,7 @@ impl PoseProblem<'_> {
             .map(|(v, &j)| match &self.model.dofs[j] {
                 JointDofs::Axes(axes) if j != 0 => {
                     let v = Vec3::new(v[0], v[1], v[2]);
-                    locked += self.locked[j].residuals(&v).iter().map(|(r, _)| r * r).sum::<f64>();
+                    locked += self.locked[j].residuals(&v).map(|(r, _)| r * r).sum::<f64>();
                     rest += v.norm_squared();
                     axes.iter().map(|a| axis_excess(a, &v).powi(2)).sum::<f64>()
                 }
@@ -837,7 +839,7 @@ impl PoseProblem<'_> {
                             }
                         }
                     }
-                    for (c, (residual, gradient)) in self.locked[j].residuals(&v).into_iter().enumerate() {
+                    for (c, (residual, gradient)) in self.locked[j].residuals(&v).enumerate() {
                         r[row + 3 + c] = lk * residual;
                         for d in 0..3 {
                             jac[(row + 3 + c, b + d)] = lk * gradient[d];
@@ -2196,8 +2198,7 @@ pub(crate) mod tests {
         let dofs = JointDofs::Axes(axes.clone());
         let locked = Locked::of(&dofs);
         assert!(matches!(locked, Locked::Product { .. }));
-        let off =
-            |q: Quat| -> f64 { locked.residuals(&q.scaled_axis()).iter().map(|(r, _)| r * r).sum::<f64>().sqrt() };
+        let off = |q: Quat| -> f64 { locked.residuals(&q.scaled_axis()).map(|(r, _)| r * r).sum::<f64>().sqrt() };
         let product = dofs.rotation(&[-45f64.to_radians(), 60f64.to_radians()]).unwrap();
         assert!(off(product) < 1e-12, "{}", off(product));
         // Its rotation vector leaves the plane of the two axes far: the plane alone could not
@@ -2208,11 +2209,12 @@ pub(crate) mod tests {
         assert!((off(twisted) - 0.1f64.sin() * 45f64.to_radians().cos()).abs() < 1e-9, "{}", off(twisted));
         // The gradient is the residual's derivative.
         let v = twisted.scaled_axis();
-        let (_, gradient) = locked.residuals(&v)[0];
+        let (_, gradient) = locked.residuals(&v).next().unwrap();
         for d in 0..3 {
             let mut step = Vec3::zeros();
             step[d] = 1e-6;
-            let numeric = (locked.residuals(&(v + step))[0].0 - locked.residuals(&(v - step))[0].0) / 2e-6;
+            let (up, down) = (v + step, v - step);
+            let numeric = (locked.residuals(&up).next().unwrap().0 - locked.residuals(&down).next().unwrap().0) / 2e-6;
             assert!((numeric - gradient[d]).abs() < 1e-6, "{d}: {numeric} vs {}", gradient[d]);
         }
         // One axis and three keep the span's directions.
