@@ -231,16 +231,12 @@ fn jumps_where_markers_hold(c3d: &Path, bvh: &Path) -> Vec<(usize, String)> {
         (f.saturating_sub(3)..(f + 4).min(frames))
             .any(|g| steady.iter().any(|&(a, b, median)| distance(g, a, b).is_some_and(|d| (d - median).abs() > 60.0)))
     };
-    let mut unexplained = Vec::new();
-    for f in 0..frames.saturating_sub(1) {
-        let (now, next) = (motion.local_rotations(f), motion.local_rotations(f + 1));
-        for (j, (p, q)) in now.iter().zip(next).enumerate() {
-            if p.angle_to(q).to_degrees() > 20.0 && !breaks(f) {
-                unexplained.push((f, motion.skeleton.joints()[j].name.clone()));
-            }
-        }
-    }
-    unexplained
+    let every_joint = vec![true; motion.skeleton.len()];
+    locap_eval::solver::rotation_jumps_over(&motion, &every_joint, 20.0)
+        .into_iter()
+        .filter(|&(f, _)| !breaks(f))
+        .map(|(f, j)| (f, motion.skeleton.joints()[j].name.clone()))
+        .collect()
 }
 
 /// The later body models on the real take of the subject no model was trained on, against CMU's

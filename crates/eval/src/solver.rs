@@ -407,6 +407,22 @@ pub fn rotation_jumps(motion: &locap_core::Motion, rotating: &[bool], over_deg: 
     (max, joint, over)
 }
 
+/// Every frame pair `(f, f + 1)` in which a joint `rotating` marks turns by more than
+/// `over_deg` (local rotations, as [`rotation_jumps`] counts them): `(f, joint index)`, in
+/// frame order.
+pub fn rotation_jumps_over(motion: &locap_core::Motion, rotating: &[bool], over_deg: f64) -> Vec<(usize, usize)> {
+    let mut jumps = Vec::new();
+    for f in 1..motion.frame_count() {
+        let (a, b) = (motion.local_rotations(f - 1), motion.local_rotations(f));
+        for (k, (qa, qb)) in a.iter().zip(b).enumerate() {
+            if rotating.get(k).copied().unwrap_or(false) && qa.angle_to(qb).to_degrees() > over_deg {
+                jumps.push((f - 1, k));
+            }
+        }
+    }
+    jumps
+}
+
 /// The wrist joints of the known skeletons and the markers beside them: (joint, markers).
 pub const WRISTS: &[(&str, &[&str])] = &[
     ("lhand", &["LWRA", "LWRB"]),
@@ -556,6 +572,22 @@ mod tests {
         rot[1] = EulerOrder::ZXY.to_quat_deg([0.0, knee_deg, 0.0]);
         rot[n + 1] = rot[1];
         Motion::new(sk, rot, vec![Vec3::new(root_x_mm, 900.0, 0.0); 2], 120.0).unwrap()
+    }
+
+    #[test]
+    fn jumps_are_frame_pairs_of_rotating_joints_over_the_limit() {
+        let sk = motion(0.0, 0.0, false).skeleton;
+        // The knee at 0, 30, 35 and 5 degrees: jumps of 30, 5 and 30.
+        let knee = [0.0, 30.0, 35.0, 5.0];
+        let mut rot = vec![Quat::identity(); 3 * knee.len()];
+        for (f, deg) in knee.iter().enumerate() {
+            rot[3 * f + 1] = EulerOrder::ZXY.to_quat_deg([0.0, *deg, 0.0]);
+        }
+        let m = Motion::new(sk, rot, vec![Vec3::zeros(); knee.len()], 120.0).unwrap();
+        assert_eq!(rotation_jumps_over(&m, &[true, true, true], 20.0), [(0, 1), (2, 1)]);
+        assert!(rotation_jumps_over(&m, &[true, false, true], 20.0).is_empty(), "the knee not rotating");
+        let (max, joint, over) = rotation_jumps(&m, &[true, true, true], 20.0);
+        assert!((max - 30.0).abs() < 1e-9 && joint == "knee" && over == 2, "{max} {joint} {over}");
     }
 
     #[test]
