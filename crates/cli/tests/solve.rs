@@ -330,3 +330,47 @@ fn the_refinement_on_the_networks_skeleton_places_joints_closer() {
     let err = refused(&["--network-skeleton".as_ref(), "0.5".as_ref(), "--kinematic-layout".as_ref(), shards.as_ref()]);
     assert!(err.contains("--network-skeleton") && err.contains("--kinematic-layout"), "{err}");
 }
+
+/// A studio solves onto the skeleton it calibrated for the subject: `--skeleton SUBJECT.asf`
+/// (no `--layout`) puts the CMU layout on that subject's own bones. On CMU 02_01 with subject
+/// 02's ASF the kinematic solver comes closer to CMU's own solution (measured JPE 17.0 mm
+/// against 20.0 on the template skeleton; docs/benchmarks.md, "The subject's own skeleton"),
+/// and the BVH carries the subject's bones. A skeleton in another unit is refused, naming
+/// the file.
+#[test]
+fn the_subjects_own_skeleton_places_joints_closer_to_cmus_solution() {
+    let Some(data) = shared_data() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let asf = data.join("cmu-asfamc/02/02.asf");
+    let solve = |skeleton: Option<&Path>, bvh: &Path| {
+        let mut c = locap();
+        c.arg("solve").arg(data.join("cmu-c3d/02_01.c3d")).args(["--method", "ik", "-o"]).arg(bvh);
+        if let Some(s) = skeleton {
+            c.arg("--skeleton").arg(s);
+        }
+        c.output().unwrap()
+    };
+    let (own, template) = (dir.path().join("own.bvh"), dir.path().join("template.bvh"));
+    for (skeleton, bvh) in [(Some(asf.as_path()), &own), (None, &template)] {
+        let out = solve(skeleton, bvh);
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    }
+    let (own_jpe, template_jpe) = (
+        common::bvh_against_cmu(&own, &data, "02", "02_01").jpe_mm,
+        common::bvh_against_cmu(&template, &data, "02", "02_01").jpe_mm,
+    );
+    assert!(own_jpe < template_jpe - 1.5, "own bones {own_jpe:.1} mm, template {template_jpe:.1} mm");
+    // The thigh (the `ltibia` joint's offset) is subject 02's, within the calibration's small
+    // correction.
+    let subject = locap_io::asf_amc::read_asf_path(&asf).unwrap();
+    let subject = subject.to_skeleton(subject.mm_per_unit()).unwrap();
+    let solved = locap_io::bvh::read_bvh_path(&own, locap_core::LengthUnit::Centimetre).unwrap().skeleton;
+    let tibia = |s: &locap_core::Skeleton| s.joints()[s.index_of("ltibia").unwrap()].offset_mm.norm();
+    assert!((tibia(&solved) / tibia(&subject) - 1.0).abs() < 0.05, "{} vs {}", tibia(&solved), tibia(&subject));
+    // A CMU BVH's skeleton read as centimetres is five times too small.
+    let bvh = data.join("cmu-bvh/131_01.bvh");
+    let out = solve(Some(&bvh), &dir.path().join("units.bvh"));
+    assert!(!out.status.success());
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(stderr.contains("131_01.bvh") && stderr.contains("another length unit"), "{stderr}");
+}

@@ -104,26 +104,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             _ => KinematicSolver::cmu41()?,
         },
     };
-    // `SKELETON_ASF`: the CMU solver on that ASF's bones (joints matched by name; the others,
-    // the end sites among them, keep the template's), wrist centres as in the default: the
-    // subject's own skeleton, as a studio solves onto its calibrated one (bones held with
-    // `BONE_PRIOR`).
+    // `SKELETON_ASF`: the CMU solver on that ASF's bones (`KinematicSolver::cmu41_on_bones_of`,
+    // as `locap solve --skeleton SUBJECT.asf`; bones held harder with `BONE_PRIOR`).
     if let Ok(path) = std::env::var("SKELETON_ASF") {
         let asf = locap_io::asf_amc::read_asf_path(Path::new(&path))?;
-        let own = asf.to_skeleton(asf.mm_per_unit())?;
-        let shipped = locap_nn::shipped::solver(&Default::default())?;
-        let joints = shipped
-            .meta
-            .skeleton
-            .joints()
-            .iter()
-            .map(|j| {
-                let offset_mm = own.index_of(&j.name).map_or(j.offset_mm, |k| own.joints()[k].offset_mm);
-                locap_core::Joint { offset_mm, ..j.clone() }
-            })
-            .collect();
-        let skeleton = locap_core::Skeleton::new(joints)?;
-        solver = KinematicSolver::cmu41_on(&skeleton, &shipped.meta.rotating)?;
+        solver = KinematicSolver::cmu41_on_bones_of(&asf.to_skeleton(asf.mm_per_unit())?)?;
     }
     config(&mut solver);
     let cleaned =

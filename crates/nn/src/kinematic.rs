@@ -181,7 +181,31 @@ pub fn cmu_asf_dofs(skeleton: &Skeleton, limits: CmuLimits) -> Vec<JointDofs> {
         .collect()
 }
 
-/// A kinematic solver: a layout's markers attached to a skeleton.
+/// How far (median over the bones, degrees) a subject's skeleton may point from the CMU
+/// template's rest pose for [`KinematicSolver::cmu41_on_bones_of`]: CMU subjects' ASF bones
+/// differ by a few degrees; a skeleton in another rest pose or frame differs by tens.
+pub const MAX_REST_POSE_TURN_DEG: f64 = 30.0;
+
+/// `template` with each bone offset moved `share` of the way to that of `target`'s joint that
+/// `matching` finds for its name; joints without a match keep the template's.
+fn bones_towards(
+    template: &Skeleton,
+    target: &Skeleton,
+    share: f64,
+    matching: impl Fn(&str) -> Option<usize>,
+) -> Result<Skeleton, NnError> {
+    let joints = template
+        .joints()
+        .iter()
+        .map(|j| {
+            let to = matching(&j.name).map_or(j.offset_mm, |k| target.joints()[k].offset_mm);
+            Joint { offset_mm: (1.0 - share) * j.offset_mm + share * to, ..j.clone() }
+        })
+        .collect();
+    Skeleton::new(joints).map_err(NnError::Skeleton)
+}
+
+/// A kinematic solver: a layout's markers attached to a skeleton./// A kinematic solver: a layout's markers attached to a skeleton.
 #[derive(Debug, Clone)]
 pub struct KinematicSolver {
     model: MarkerModel,
@@ -439,6 +463,54 @@ impl KinematicSolver {
         // wrist centre lies between them.
         let shipped = crate::shipped::solver(&Default::default())?;
         KinematicSolver::cmu41_on(&shipped.meta.skeleton, &shipped.meta.rotating)
+    }
+
+    /// [`KinematicSolver::cmu41`] on the subject's own bones, as a studio solves onto the
+    /// skeleton it calibrated for the subject: each bone of the shipped CMU skeleton takes the
+    /// offset of `subject`'s joint of the same name (or of an alias the CMU layout gives it, a
+    /// CMU BVH's `LeftHip` for `lfemur`); bones `subject` lacks keep the template's. The subject
+    /// calibration still fits lengths and offsets, held towards these bones, and the refinement
+    /// leaves them where they are ([`KinematicSolver::network_skeleton`] 0).
+    ///
+    /// # Errors
+    /// The shipped solver does not load; `subject` names no CMU joint a marker rides on; or its
+    /// bones are not in the template's units and rest pose: together more than twice or less
+    /// than half as long, or their median direction over [`MAX_REST_POSE_TURN_DEG`] off.
+    pub fn cmu41_on_bones_of(subject: &Skeleton) -> Result<KinematicSolver, NnError> {
+        let shipped = crate::shipped::solver(&Default::default())?;
+        let template = &shipped.meta.skeleton;
+        let layout = Layout::cmu41();
+        let skeleton = bones_towards(template, subject, 1.0, |name| layout.resolve_joint(subject, name))?;
+        let carriers: Vec<&str> = layout.markers.iter().map(|m| m.joint.as_str()).collect();
+        if !carriers.iter().any(|name| layout.resolve_joint(subject, name).is_some()) {
+            return Err(NnError::Kinematic(
+                "the skeleton names none of the CMU joints the markers ride on (lfemur, rhumerus, ... or LeftHip, ...)"
+                    .into(),
+            ));
+        }
+        let (mut template_mm, mut subject_mm, mut turns) = (0.0, 0.0, Vec::new());
+        for (t, s) in template.joints().iter().zip(skeleton.joints()) {
+            if t.offset_mm.norm() > 1.0 && s.offset_mm.norm() > 1.0 && t.offset_mm != s.offset_mm {
+                template_mm += t.offset_mm.norm();
+                subject_mm += s.offset_mm.norm();
+                turns.push(t.offset_mm.angle(&s.offset_mm).to_degrees());
+            }
+        }
+        let ratio = subject_mm / template_mm.max(f64::MIN_POSITIVE);
+        if !turns.is_empty() && !(0.5..=2.0).contains(&ratio) {
+            return Err(NnError::Kinematic(format!(
+                "the skeleton's bones are {ratio:.2} times the CMU template's: another length unit?"
+            )));
+        }
+        turns.sort_by(f64::total_cmp);
+        if let Some(&median) = turns.get(turns.len() / 2).filter(|&&m| m > MAX_REST_POSE_TURN_DEG) {
+            return Err(NnError::Kinematic(format!(
+                "the skeleton's bones point {median:.0} degrees from the CMU template's (median): another rest pose or up axis?"
+            )));
+        }
+        let mut solver = KinematicSolver::cmu41_on(&skeleton, &shipped.meta.rotating)?;
+        solver.network_skeleton = 0.0;
+        Ok(solver)
     }
 
     /// [`KinematicSolver::cmu41`] with each joint's freedom from `dofs` (given the shipped
@@ -717,17 +789,7 @@ impl KinematicSolver {
     /// one `target` lacks keeps the template's), with this solver's settings.
     fn on_skeleton_towards(&self, target: &Skeleton, rotating: &[bool]) -> Result<KinematicSolver, NnError> {
         let w = self.network_skeleton.clamp(0.0, 1.0);
-        let joints = self
-            .model
-            .skeleton()
-            .joints()
-            .iter()
-            .map(|j| {
-                let to = target.index_of(&j.name).map_or(j.offset_mm, |k| target.joints()[k].offset_mm);
-                Joint { offset_mm: (1.0 - w) * j.offset_mm + w * to, ..j.clone() }
-            })
-            .collect();
-        let skeleton = Skeleton::new(joints).map_err(NnError::Skeleton)?;
+        let skeleton = bones_towards(self.model.skeleton(), target, w, |name| target.index_of(name))?;
         let mut solver = KinematicSolver::cmu41_on(&skeleton, rotating)?;
         solver.config = self.config;
         solver.refine_prior = self.refine_prior;

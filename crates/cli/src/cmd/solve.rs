@@ -13,7 +13,8 @@
 //! `--method ik` solves with the kinematic solver instead (`locap_nn::kinematic`: the labeler's
 //! IK after a subject calibration on the take, no training), for any marker set with a layout:
 //! `--layout` (with a skeleton section, e.g. from `locap layout --from-opensim`, or with
-//! `--skeleton`), by default the CMU 41-marker layout on the shipped solver's skeleton.
+//! `--skeleton`), by default the CMU 41-marker layout on the shipped solver's skeleton, or on
+//! the subject's own CMU skeleton (`--skeleton SUBJECT.asf` alone).
 //! `--method refine` runs the network, then the kinematic solver pulled towards the network's
 //! joint rotations (`KinematicSolver::refine`): the network's prior where the markers say
 //! little, the markers' fit where they see. The default `--method auto` refines wherever the
@@ -107,8 +108,10 @@ pub struct Args {
     /// on the shipped solver's skeleton.
     #[arg(long, value_name = "LAYOUT", help_heading = "Solver")]
     layout: Option<PathBuf>,
-    /// Skeleton (ASF or BVH, Y up) for a --layout without a skeleton section.
-    #[arg(long, value_name = "FILE", requires = "layout", help_heading = "Solver")]
+    /// Skeleton (ASF or BVH, Y up, in its rest pose) for a --layout without a skeleton
+    /// section; without --layout, the subject's own CMU skeleton (e.g. the subject's ASF): the
+    /// CMU layout's bones take its lengths and directions, joint by joint.
+    #[arg(long, value_name = "FILE", help_heading = "Solver")]
     skeleton: Option<PathBuf>,
     /// The CMU kinematic solver (no --layout) keeps the template's forearm lengths instead of
     /// calibrating and holding each wrist within 45 mm of the mean of its two wrist markers.
@@ -143,21 +146,30 @@ impl From<Method> for SolveMethod {
 
 /// The kinematic solver the arguments ask for.
 pub(crate) fn kinematic_solver(layout: Option<&Path>, skeleton: Option<&Path>) -> Result<KinematicSolver> {
-    let Some(path) = layout else { return Ok(KinematicSolver::cmu41()?) };
+    let Some(path) = layout else {
+        return match skeleton {
+            Some(sk) => {
+                KinematicSolver::cmu41_on_bones_of(&read_skeleton(sk)?).with_context(|| format!("{}", sk.display()))
+            }
+            None => Ok(KinematicSolver::cmu41()?),
+        };
+    };
     let layout = crate::cmd::layout::read_layout(path)?;
     let solver = match skeleton {
-        Some(sk) => {
-            let skeleton = if inputs::has_extension(sk, &["asf"]) {
-                let asf = locap_io::asf_amc::read_asf_path(sk)?;
-                asf.to_skeleton(asf.mm_per_unit()).map_err(|e| e.in_file(sk))?
-            } else {
-                locap_io::bvh::read_bvh_path(sk, LengthUnit::Centimetre)?.skeleton
-            };
-            KinematicSolver::new(&layout, &skeleton, None)
-        }
+        Some(sk) => KinematicSolver::new(&layout, &read_skeleton(sk)?, None),
         None => KinematicSolver::from_layout(&layout),
     };
     solver.with_context(|| format!("{}", path.display()))
+}
+
+/// A skeleton from an ASF (its own length unit) or a BVH (centimetres).
+fn read_skeleton(path: &Path) -> Result<locap_core::Skeleton> {
+    Ok(if inputs::has_extension(path, &["asf"]) {
+        let asf = locap_io::asf_amc::read_asf_path(path)?;
+        asf.to_skeleton(asf.mm_per_unit()).map_err(|e| e.in_file(path))?
+    } else {
+        locap_io::bvh::read_bvh_path(path, LengthUnit::Centimetre)?.skeleton
+    })
 }
 
 /// What one take gave.
