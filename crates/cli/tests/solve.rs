@@ -373,4 +373,16 @@ fn the_subjects_own_skeleton_places_joints_closer_to_cmus_solution() {
     assert!(!out.status.success());
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(stderr.contains("131_01.bvh") && stderr.contains("another length unit"), "{stderr}");
+    // The network alone solves on its own skeleton: a skeleton given to it is refused.
+    let out = locap()
+        .arg("solve")
+        .arg(data.join("cmu-c3d/02_01.c3d"))
+        .args(["--method", "network", "--skeleton"])
+        .arg(&asf)
+        .arg("-o")
+        .arg(dir.path().join("network.bvh"))
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--skeleton goes with the kinematic solver"));
 }

@@ -205,7 +205,7 @@ fn bones_towards(
     Skeleton::new(joints).map_err(NnError::Skeleton)
 }
 
-/// A kinematic solver: a layout's markers attached to a skeleton./// A kinematic solver: a layout's markers attached to a skeleton.
+/// A kinematic solver: a layout's markers attached to a skeleton.
 #[derive(Debug, Clone)]
 pub struct KinematicSolver {
     model: MarkerModel,

@@ -243,6 +243,9 @@ pub fn run(args: Args) -> Result<ExitCode> {
         (_, _, FillArg::Neural) => RefinerSource::Shipped,
         _ => RefinerSource::None,
     };
+    if args.method == Method::Network && args.skeleton.is_some() {
+        return Err(inputs::usage("--skeleton goes with the kinematic solver: --method ik, refine or auto"));
+    }
     let kinematic = match args.method {
         Method::Network => None,
         Method::Ik | Method::Auto | Method::Refine => {
