@@ -382,45 +382,45 @@ pub fn table(region: &str, scores: &[MethodScores]) -> String {
     out
 }
 
+/// Each turn of a joint `rotating` marks between consecutive frames: `(f, joint index,
+/// degrees)` for the pair `(f, f + 1)`, in frame order. Local rotations: a parent's turn is not
+/// counted again in its children.
+fn local_turns<'a>(
+    motion: &'a locap_core::Motion,
+    rotating: &'a [bool],
+) -> impl Iterator<Item = (usize, usize, f64)> + 'a {
+    (1..motion.frame_count()).flat_map(move |f| {
+        let (a, b) = (motion.local_rotations(f - 1), motion.local_rotations(f));
+        a.iter()
+            .zip(b)
+            .enumerate()
+            .filter(|(k, _)| rotating.get(*k).copied().unwrap_or(false))
+            .map(|(k, (qa, qb))| (f - 1, k, qa.angle_to(qb).to_degrees()))
+            .collect::<Vec<_>>()
+    })
+}
+
 /// The largest rotation of any joint `rotating` marks between consecutive frames (degrees),
 /// the joint's name, and how many frame pairs turn some joint by more than `over_deg`.
 pub fn rotation_jumps(motion: &locap_core::Motion, rotating: &[bool], over_deg: f64) -> (f64, String, usize) {
-    let (mut max, mut joint, mut over) = (0.0, String::new(), 0);
-    for f in 1..motion.frame_count() {
-        let mut frame_max: f64 = 0.0;
-        // Local rotations: a parent's turn is not counted again in its children.
-        let (a, b) = (motion.local_rotations(f - 1), motion.local_rotations(f));
-        for (k, (qa, qb)) in a.iter().zip(b).enumerate() {
-            let local = qa.angle_to(qb).to_degrees();
-            if rotating.get(k).copied().unwrap_or(false) {
-                frame_max = frame_max.max(local);
-                if local > max {
-                    max = local;
-                    joint = motion.skeleton.joints()[k].name.clone();
-                }
-            }
+    let (mut max, mut joint, mut over, mut counted) = (0.0, String::new(), 0, None);
+    for (f, k, deg) in local_turns(motion, rotating) {
+        if deg > max {
+            max = deg;
+            joint = motion.skeleton.joints()[k].name.clone();
         }
-        if frame_max > over_deg {
+        if deg > over_deg && counted != Some(f) {
             over += 1;
+            counted = Some(f);
         }
     }
     (max, joint, over)
 }
 
 /// Every frame pair `(f, f + 1)` in which a joint `rotating` marks turns by more than
-/// `over_deg` (local rotations, as [`rotation_jumps`] counts them): `(f, joint index)`, in
-/// frame order.
+/// `over_deg` (as [`rotation_jumps`] counts them): `(f, joint index)`, in frame order.
 pub fn rotation_jumps_over(motion: &locap_core::Motion, rotating: &[bool], over_deg: f64) -> Vec<(usize, usize)> {
-    let mut jumps = Vec::new();
-    for f in 1..motion.frame_count() {
-        let (a, b) = (motion.local_rotations(f - 1), motion.local_rotations(f));
-        for (k, (qa, qb)) in a.iter().zip(b).enumerate() {
-            if rotating.get(k).copied().unwrap_or(false) && qa.angle_to(qb).to_degrees() > over_deg {
-                jumps.push((f - 1, k));
-            }
-        }
-    }
-    jumps
+    local_turns(motion, rotating).filter(|&(.., deg)| deg > over_deg).map(|(f, k, _)| (f, k)).collect()
 }
 
 /// The wrist joints of the known skeletons and the markers beside them: (joint, markers).

@@ -481,8 +481,7 @@ impl KinematicSolver {
         let template = &shipped.meta.skeleton;
         let layout = Layout::cmu41();
         let skeleton = bones_towards(template, subject, 1.0, |name| layout.resolve_joint(subject, name))?;
-        let carriers: Vec<&str> = layout.markers.iter().map(|m| m.joint.as_str()).collect();
-        if !carriers.iter().any(|name| layout.resolve_joint(subject, name).is_some()) {
+        if !layout.markers.iter().any(|m| layout.resolve_joint(subject, &m.joint).is_some()) {
             return Err(NnError::Kinematic(
                 "the skeleton names none of the CMU joints the markers ride on (lfemur, rhumerus, ... or LeftHip, ...)"
                     .into(),
