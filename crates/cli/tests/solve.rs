@@ -155,9 +155,13 @@ fn eval_prints_table_one() {
     let out = eval().output().unwrap();
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("one reference per take"));
-    // A refine prior that is not a weight, or a prior window that is not a time, is refused,
-    // naming the option.
-    for (given, named) in [("--refine-prior=-1", "--refine-prior -1"), ("--prior-window=nan", "--prior-window NaN")] {
+    // A refine or offset prior that is not a weight, or a prior window that is not a time, is
+    // refused, naming the option.
+    for (given, named) in [
+        ("--refine-prior=-1", "--refine-prior -1"),
+        ("--prior-window=nan", "--prior-window NaN"),
+        ("--offset-prior=-1", "--offset-prior -1"),
+    ] {
         let out = eval()
             .arg("--reference")
             .arg(data.join("cmu-asfamc/02/02_01.amc"))
@@ -334,7 +338,8 @@ fn the_refinement_on_the_networks_skeleton_places_joints_closer() {
 /// A studio solves onto the skeleton it calibrated for the subject: `--skeleton SUBJECT.asf`
 /// (no `--layout`) puts the CMU layout on that subject's own bones. On CMU 02_01 with subject
 /// 02's ASF the kinematic solver comes closer to CMU's own solution (measured JPE 17.0 mm
-/// against 20.0 on the template skeleton; docs/benchmarks.md, "The subject's own skeleton"),
+/// against 18.7 on the template skeleton with the trunk's markers held; docs/benchmarks.md,
+/// "The subject's own skeleton" and "The trunk's markers held"),
 /// and the BVH carries the subject's bones. A skeleton in another unit is refused, naming
 /// the file.
 #[test]
@@ -359,7 +364,7 @@ fn the_subjects_own_skeleton_places_joints_closer_to_cmus_solution() {
         common::bvh_against_cmu(&own, &data, "02", "02_01").jpe_mm,
         common::bvh_against_cmu(&template, &data, "02", "02_01").jpe_mm,
     );
-    assert!(own_jpe < template_jpe - 1.5, "own bones {own_jpe:.1} mm, template {template_jpe:.1} mm");
+    assert!(own_jpe < template_jpe - 1.0, "own bones {own_jpe:.1} mm, template {template_jpe:.1} mm");
     // The thigh (the `ltibia` joint's offset) is subject 02's, within the calibration's small
     // correction.
     let subject = locap_io::asf_amc::read_asf_path(&asf).unwrap();

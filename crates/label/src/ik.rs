@@ -35,7 +35,9 @@
 //! smoothness and limit terms. A calibration sample counts as a stray only when it lies far
 //! from where the marker's median displacement in its body puts it: a marker the subject wears
 //! a few centimetres from the template's place is off by the same amount in every frame, and is
-//! recalibrated rather than left out. A model may name joints that lie at the mean of markers
+//! recalibrated rather than left out; markers a model names as landmarks (on bone, where every
+//! lab puts them: [`MarkerModel::with_landmarks`]) are held harder, since a segment's markers
+//! cannot tell a constant turn of the segment from the same turn of all their offsets. A model may name joints that lie at the mean of markers
 //! worn around them ([`JointCentre`], a wrist between its two wrist markers): the calibration
 //! then fits the bone lengths the markers on the bone leave free to bring the joint within a
 //! radius of there, and every frame's fit holds it within that radius.
@@ -84,6 +86,9 @@ pub struct MarkerModel {
     /// Per joint: how hard a prior pose holds it, times [`IkConfig::prior`]
     /// ([`MarkerModel::with_prior_weights`]; 1 unless given).
     prior_weights: Vec<f64>,
+    /// Per marker: worn on a bony landmark whose place the template knows, its offset held
+    /// harder in the subject calibration ([`MarkerModel::with_landmarks`]; none unless given).
+    landmarks: Vec<bool>,
 }
 
 /// A joint that turns as another does, scaled: a finger's distal interphalangeal joint flexes
@@ -246,8 +251,10 @@ impl MarkerModel {
         let moving = (0..skeleton.len()).filter(|&j| !skeleton.joints()[j].is_end_site).collect();
         let dofs = vec![JointDofs::Free; skeleton.len()];
         let prior_weights = vec![1.0; skeleton.len()];
+        let landmarks = vec![false; attachments.len()];
         Ok(MarkerModel {
             prior_weights,
+            landmarks,
             skeleton,
             attachments,
             moving,
@@ -328,6 +335,37 @@ impl MarkerModel {
     /// Per joint: its weight towards a prior pose ([`MarkerModel::with_prior_weights`]).
     pub fn prior_weights(&self) -> &[f64] {
         &self.prior_weights
+    }
+
+    /// The same model with the markers `landmarks` marks (one entry per marker) worn on bony
+    /// landmarks: the subject calibration holds their offsets towards the template's with
+    /// [`SequenceConfig::landmark_offset_prior`] instead of [`SequenceConfig::offset_prior`].
+    ///
+    /// Why: a segment's markers cannot tell a constant turn or shift of the segment from the
+    /// same turn or shift of all their offsets, and with every offset free the calibration
+    /// files part of the subject's pose as marker placement. Markers on bone (the pelvis's
+    /// spines, the vertebrae, the sternum) sit where a layout says, to within a few
+    /// millimetres; holding them fixes the trunk's frame as gait models define it from the
+    /// same markers, while markers on soft tissue and wands stay free to sit where this
+    /// subject wears them.
+    ///
+    /// # Errors
+    /// Not one entry per marker.
+    pub fn with_landmarks(mut self, landmarks: Vec<bool>) -> Result<MarkerModel, LabelError> {
+        if landmarks.len() != self.attachments.len() {
+            return Err(LabelError::Config(format!(
+                "{} landmark flags for a model of {} markers",
+                landmarks.len(),
+                self.attachments.len()
+            )));
+        }
+        self.landmarks = landmarks;
+        Ok(self)
+    }
+
+    /// Per marker: worn on a bony landmark ([`MarkerModel::with_landmarks`]).
+    pub fn landmarks(&self) -> &[bool] {
+        &self.landmarks
     }
 
     /// The prior's weight on pose parameter `k` (a rotation vector component of a moving joint).
@@ -1192,6 +1230,10 @@ pub struct SequenceConfig {
     /// Pull of a marker's offset towards the template's (at the overall scale): residual per mm
     /// of offset change, per calibration frame.
     pub offset_prior: f64,
+    /// The same pull for the markers a model marks as landmarks ([`MarkerModel::with_landmarks`]).
+    /// At 1 a landmark's offset lands halfway between the template's and where the markers alone
+    /// would put it (its pull weighs as much as the marker seen in every calibration frame).
+    pub landmark_offset_prior: f64,
     /// Calibration samples further than this (mm) from where the posed model and the marker's
     /// median displacement put it are left out (stray or swapped markers; in the first round,
     /// which fits no offsets, from the posed model itself).
@@ -1213,6 +1255,8 @@ impl Default for SequenceConfig {
             calibration_rounds: 10,
             bone_prior_mm: 200.0,
             offset_prior: 0.05,
+            // Chosen on the validation takes (docs/benchmarks.md, "The trunk's markers held").
+            landmark_offset_prior: 1.0,
             calibration_outlier_mm: 60.0,
             first_pass_hz: 30.0,
             // A bone 10% off its template length costs as much as a centre 20 mm off.
@@ -1745,9 +1789,12 @@ fn calibrate_linear(
             let target = anchor.skeleton.joints()[j].offset_mm.norm() / sk.joints()[j].offset_mm.norm();
             add_row(&[(*col, w)], w * target, &mut a, &mut b);
         }
-        let w = config.offset_prior * root_k;
         for (i, col) in offset_of.iter().enumerate() {
             let (Some(col), Some(att)) = (col, &anchor.attachments[i]) else { continue };
+            // A model whose markers were changed after the flags were given counts none as a landmark.
+            let landmark = model.landmarks.get(i).copied().unwrap_or(false);
+            let prior = if landmark { config.landmark_offset_prior } else { config.offset_prior };
+            let w = prior * root_k;
             for d in 0..3 {
                 add_row(&[(col + d, w)], w * att.offset_mm[d], &mut a, &mut b);
             }
@@ -2134,6 +2181,33 @@ pub(crate) mod tests {
         }
         let marker = (sum / n).sqrt();
         assert!(marker < 5.0, "the moved marker stays {marker:.1} mm off");
+    }
+
+    #[test]
+    fn a_landmark_markers_offset_is_held_towards_the_template() {
+        // The subject wears one of the root's three markers 30 mm from the template's place (a
+        // marker on soft tissue, or a template that is off for it): free, the calibration moves
+        // its offset most of the way there; as a landmark (with its two partners), it stays
+        // near the template's place (measured: 18.4 mm against 5.5).
+        let model = hinged_arm();
+        let (mut subject, _, truth) = subject_take(&model, 240);
+        let moved = Vec3::new(0.0, 0.0, 30.0);
+        subject.attachments[1].as_mut().unwrap().offset_mm += moved;
+        let frames: Frames = truth.iter().map(|theta| subject.markers_mm(theta)).collect();
+        let config = SequenceConfig::default();
+        // Where marker 1 ends up in its joint's frame, against the template's offset at the
+        // subject's overall scale.
+        let shift = |model: MarkerModel| {
+            let fit = solve_sequence(model, &frames, 60.0, &config).unwrap();
+            let template = hinged_arm().attachments[1].as_ref().unwrap().offset_mm * fit.scale;
+            (fit.model.attachments[1].as_ref().unwrap().offset_mm - template).norm()
+        };
+        let free = shift(model.clone());
+        let landmarks = (0..model.marker_count()).map(|i| i < 3).collect();
+        let held = shift(model.with_landmarks(landmarks).unwrap());
+        assert!(free > 15.0, "the free marker's offset moved {free:.1} mm");
+        assert!(held < 0.5 * free, "the landmark's offset moved {held:.1} mm, the free one's {free:.1}");
+        assert!(hinged_arm().with_landmarks(vec![true; 2]).is_err());
     }
 
     #[test]

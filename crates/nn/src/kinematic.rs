@@ -19,7 +19,10 @@
 //! about one axis, a hand about two, within the ranges CMU's own solutions use
 //! ([`CMU_SOLVED_RANGES`]). The wrist joints are calibrated and held near the mean of their
 //! two wrist markers ([`CMU_WRIST_CENTRES`]), where gait models put the wrist centre: within a
-//! radius of it, as CMU's skeleton has its hand joint further down the hand.
+//! radius of it, as CMU's skeleton has its hand joint further down the hand. The trunk's
+//! markers (pelvis, spine, sternum) are held near the layout's offsets in the calibration
+//! ([`CMU_TRUNK_LANDMARK_JOINTS`]), as gait models define the pelvis's and thorax's frames
+//! from them.
 //! It is Y-up; a Z-up take sees it
 //! turned into its lab by the convention of [`locap_core::units::y_up_to_z_up`], and the motion
 //! comes back in the skeleton's Y-up frame, as the network solver's does.
@@ -82,6 +85,15 @@ pub const CMU_ASF_DOFS: &[CmuBoneDofs] = &[
 /// is held within [`locap_label::ik::CENTRE_RADIUS_MM`] of it, where CMU's skeleton puts it
 /// 45-75 mm away.
 pub const CMU_WRIST_CENTRES: &[(&str, &[&str])] = &[("lhand", &["LWRA", "LWRB"]), ("rhand", &["RWRA", "RWRB"])];
+
+/// The CMU trunk's joints whose markers sit on bone (the pelvis's spines on `root`, T10 on
+/// `upperback`, the sternum, clavicle notch and back on `thorax`, C7 on `lowerneck`): the
+/// subject calibration holds their offsets towards the layout's
+/// ([`locap_label::ik::MarkerModel::with_landmarks`]), so the pelvis's and the thorax's frames
+/// are the markers' as gait models define them, instead of a turn or shift of the segment the
+/// calibration files as marker placement. The head's markers (a band, worn higher or lower) and
+/// the limbs' stay free.
+pub const CMU_TRUNK_LANDMARK_JOINTS: [&str; 5] = ["root", "lowerback", "upperback", "thorax", "lowerneck"];
 
 /// The ranges CMU's own solutions use (degrees, per bone, in [`CMU_ASF_DOFS`]'s dof order): the
 /// ASF's `limits` widened to the 0.1th and 99.9th percentile of the AMC values of training
@@ -509,6 +521,11 @@ impl KinematicSolver {
         }
         let mut solver = KinematicSolver::cmu41_on(&skeleton, &shipped.meta.rotating)?;
         solver.network_skeleton = 0.0;
+        // The layout's trunk offsets are measured from the template's pelvis and thorax joints;
+        // a studio's skeleton puts those joints elsewhere in the body, so no marker is held
+        // there (held, 02_01 on subject 02's bones came 2.4 mm further from CMU's solution).
+        let markers = solver.model.marker_count();
+        solver.model = solver.model.with_landmarks(vec![false; markers]).map_err(config_error)?;
         Ok(solver)
     }
 
@@ -562,6 +579,15 @@ impl KinematicSolver {
             .map(|(j, (d, r))| if *r || j == 0 { d } else { JointDofs::Axes(Vec::new()) })
             .collect();
         let mut solver = KinematicSolver::new(&Layout::cmu41(), skeleton, Some(dofs))?;
+        let layout = Layout::cmu41();
+        let landmarks = solver
+            .markers
+            .iter()
+            .map(|name| {
+                layout.markers.iter().any(|m| m.name == *name && CMU_TRUNK_LANDMARK_JOINTS.contains(&m.joint.as_str()))
+            })
+            .collect();
+        solver.model = solver.model.with_landmarks(landmarks).map_err(config_error)?;
         solver.refine_prior = BODY_REFINE_PRIOR;
         solver.bias_huber_deg = BODY_BIAS_HUBER_DEG;
         solver.bias_half_window_s = BODY_BIAS_HALF_WINDOW_S;
@@ -796,7 +822,11 @@ impl KinematicSolver {
         solver.network_skeleton = 0.0;
         solver.bias_huber_deg = self.bias_huber_deg;
         solver.bias_half_window_s = self.bias_half_window_s;
-        solver.model = solver.model.with_prior_weights(self.model.prior_weights().to_vec()).map_err(config_error)?;
+        solver.model = solver
+            .model
+            .with_prior_weights(self.model.prior_weights().to_vec())
+            .and_then(|m| m.with_landmarks(self.model.landmarks().to_vec()))
+            .map_err(config_error)?;
         Ok(solver)
     }
 

@@ -91,6 +91,11 @@ pub struct Args {
     /// degrees (0: one pass; default `locap_nn::kinematic::BODY_BIAS_HUBER_DEG`).
     #[arg(long, value_name = "DEGREES", requires = "refine", help_heading = "Input")]
     refine_bias: Option<f64>,
+    /// Pull of each marker's offset towards the layout's in the kinematic solver's subject
+    /// calibration, per mm of offset change and calibration frame (default: the solver's,
+    /// `locap_label::ik::SequenceConfig::offset_prior`).
+    #[arg(long, value_name = "WEIGHT", requires = "kinematic", help_heading = "Input")]
+    offset_prior: Option<f64>,
     /// Write the results as JSON.
     #[arg(long, value_name = "FILE", help_heading = "Output")]
     json: Option<PathBuf>,
@@ -197,6 +202,10 @@ pub fn run(args: Args) -> Result<ExitCode> {
         if let Some(d) = args.prior_huber {
             anyhow::ensure!(d.is_finite() && d >= 0.0, "--prior-huber {d} is not an angle (finite, at least 0)");
             k.config.ik.prior_huber_deg = d;
+        }
+        if let Some(w) = args.offset_prior {
+            anyhow::ensure!(w.is_finite() && w >= 0.0, "--offset-prior {w} is not a weight (finite, at least 0)");
+            k.config.offset_prior = w;
         }
         if let Some(d) = args.refine_bias {
             anyhow::ensure!(d.is_finite() && d >= 0.0, "--refine-bias {d} is not an angle (finite, at least 0)");
