@@ -37,10 +37,11 @@
 //! a few centimetres from the template's place is off by the same amount in every frame, and is
 //! recalibrated rather than left out; markers a model names as landmarks (on bone, where every
 //! lab puts them: [`MarkerModel::with_landmarks`]) are held harder, since a segment's markers
-//! cannot tell a constant turn of the segment from the same turn of all their offsets. A model may name joints that lie at the mean of markers
-//! worn around them ([`JointCentre`], a wrist between its two wrist markers): the calibration
-//! then fits the bone lengths the markers on the bone leave free to bring the joint within a
-//! radius of there, and every frame's fit holds it within that radius.
+//! cannot tell a constant turn of the segment from the same turn of all their offsets. A model
+//! may name joints that lie at the mean of markers worn around them ([`JointCentre`], a wrist
+//! between its two wrist markers): the calibration then fits the bone lengths the markers on
+//! the bone leave free to bring the joint within a radius of there, and every frame's fit holds
+//! it within that radius.
 //! The take is also tracked backwards from its last frame, and the frames before one switch
 //! frame come from that pass where it fits the markers clearly better: a limb the first frame
 //! leaves in a wrong minimum is otherwise tracked there until a motion snaps it out.

@@ -578,8 +578,8 @@ impl KinematicSolver {
             .enumerate()
             .map(|(j, (d, r))| if *r || j == 0 { d } else { JointDofs::Axes(Vec::new()) })
             .collect();
-        let mut solver = KinematicSolver::new(&Layout::cmu41(), skeleton, Some(dofs))?;
         let layout = Layout::cmu41();
+        let mut solver = KinematicSolver::new(&layout, skeleton, Some(dofs))?;
         let landmarks = solver
             .markers
             .iter()
