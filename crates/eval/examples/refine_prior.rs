@@ -7,15 +7,16 @@
 //! then refines it under each variant of `VARIANTS`: `;`-separated, each a `,`-separated list
 //! of `GROUP=FACTOR` (groups: `spine`, `neck`, `hands`, `wrists`, `arms`, `legs`, `all`, or a
 //! joint name; the factor times `KinematicSolver::refine_prior`, replacing the default's),
-//! `prior=W` (the pull itself), `offset=W` (the calibration's offset prior), `handpass=F` (the
-//! hands' share of the pull in the refinement's first pass) and `kin` (the kinematic solver
-//! alone, no network); `base` alone: the default refinement. Prints, pooled by frames, JOE and
-//! JPE over all joints and over the joints the markers constrain, then JPE and JOE per joint.
+//! `prior=W` (the pull itself), `offset=W` (the calibration's offset prior), `pass:GROUP=F`
+//! (the group's share of its pull in the refinement's first pass) and `kin` (the kinematic
+//! solver alone, no network); `base` alone: the default refinement. Prints, pooled by frames,
+//! JOE and JPE over all joints and over the joints the markers constrain, then JPE and JOE per
+//! joint.
 
 use locap_clean::FillConfig;
 use locap_core::{LengthUnit, Motion};
 use locap_eval::solver::compare_motions;
-use locap_nn::kinematic::{BODY_HANDS, KinematicSolver};
+use locap_nn::kinematic::KinematicSolver;
 use std::path::PathBuf;
 
 /// The joints of a group of the CMU skeleton.
@@ -91,10 +92,6 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 "huber" => solver.config.ik.prior_huber_deg = f,
                 "bias" => solver.bias_huber_deg = f,
                 "biaswin" => solver.bias_half_window_s = f,
-                "handpass" => {
-                    let hands: Vec<(&str, f64)> = BODY_HANDS.iter().map(|j| (*j, f)).collect();
-                    solver = solver.with_bias_pass_factors(&hands)?;
-                }
                 g if g.starts_with("pass:") => {
                     let joints: Vec<(&str, f64)> = group(&g[5..]).into_iter().map(|j| (j, f)).collect();
                     solver = solver.with_bias_pass_factors(&joints)?;

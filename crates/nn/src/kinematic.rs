@@ -633,24 +633,35 @@ impl KinematicSolver {
     /// # Errors
     /// A joint the skeleton lacks, or a factor that is negative or not finite.
     pub fn with_bias_pass_factors(mut self, factors: &[(&str, f64)]) -> Result<KinematicSolver, NnError> {
-        let skeleton = self.model.skeleton();
-        let mut all =
-            if self.bias_pass_factors.is_empty() { vec![1.0; skeleton.len()] } else { self.bias_pass_factors.clone() };
-        for (name, factor) in factors {
-            let j = skeleton
-                .index_of(name)
-                .ok_or_else(|| NnError::Kinematic(format!("bias pass: the skeleton has no joint {name:?}")))?;
-            if !(factor.is_finite() && *factor >= 0.0) {
-                return Err(NnError::Kinematic(format!("bias pass: factor {factor} for {name:?}")));
-            }
-            all[j] = *factor;
+        let mut start = std::mem::take(&mut self.bias_pass_factors);
+        if start.is_empty() {
+            start = vec![1.0; self.model.skeleton().len()];
         }
-        self.bias_pass_factors = all;
+        self.bias_pass_factors = self.named_factors(start, factors, "bias pass")?;
         Ok(self)
     }
 
+    /// `start` (one value per joint) with each named joint's value replaced by its factor.
+    ///
+    /// # Errors
+    /// A joint the skeleton lacks, or a factor that is negative or not finite (`what` names
+    /// the setting in the message).
+    fn named_factors(&self, mut start: Vec<f64>, factors: &[(&str, f64)], what: &str) -> Result<Vec<f64>, NnError> {
+        let skeleton = self.model.skeleton();
+        for (name, factor) in factors {
+            let j = skeleton
+                .index_of(name)
+                .ok_or_else(|| NnError::Kinematic(format!("{what}: the skeleton has no joint {name:?}")))?;
+            if !(factor.is_finite() && *factor >= 0.0) {
+                return Err(NnError::Kinematic(format!("{what}: factor {factor} for {name:?}")));
+            }
+            start[j] = *factor;
+        }
+        Ok(start)
+    }
+
     /// The solver of [`KinematicSolver::refine`]'s first pass: each joint's pull scaled by its
-    /// [`KinematicSolver::bias_pass_factors`].
+    /// [`KinematicSolver::bias_pass_factors`] (a copy of this one where there are none).
     fn for_bias_pass(&self) -> Result<KinematicSolver, NnError> {
         let weights: Vec<f64> = self
             .model
@@ -672,14 +683,7 @@ impl KinematicSolver {
     /// # Errors
     /// A joint the skeleton lacks, or a factor that is negative or not finite.
     pub fn with_refine_prior_factors(mut self, factors: &[(&str, f64)]) -> Result<KinematicSolver, NnError> {
-        let skeleton = self.model.skeleton();
-        let mut weights = self.model.prior_weights().to_vec();
-        for (name, factor) in factors {
-            let j = skeleton
-                .index_of(name)
-                .ok_or_else(|| NnError::Kinematic(format!("refine prior: the skeleton has no joint {name:?}")))?;
-            weights[j] = *factor;
-        }
+        let weights = self.named_factors(self.model.prior_weights().to_vec(), factors, "refine prior")?;
         self.model = self.model.with_prior_weights(weights).map_err(config_error)?;
         Ok(self)
     }
@@ -868,11 +872,7 @@ impl KinematicSolver {
         if !(self.bias_huber_deg > 0.0) {
             return self.solve_frames(cleaned, rate_hz, Some(&poses));
         }
-        let (first, first_report) = if self.bias_pass_factors.is_empty() {
-            self.solve_frames(cleaned, rate_hz, Some(&poses))?
-        } else {
-            self.for_bias_pass()?.solve_frames(cleaned, rate_hz, Some(&poses))?
-        };
+        let (first, first_report) = self.for_bias_pass()?.solve_frames(cleaned, rate_hz, Some(&poses))?;
         let fitted: Vec<&[Quat]> = (0..frames).map(|f| first.local_rotations(f)).collect();
         let half = (self.bias_half_window_s * rate_hz).round().max(0.0) as usize;
         let corrected = without_bias(&poses, &fitted, half, self.bias_huber_deg.to_radians());
