@@ -93,7 +93,8 @@ fn synth_mirror_and_subject_flags() {
     let mirrored = run("mirror", &["--mirror"]);
     let wide = run("wide", &["--bone-scale", "0.87", "1.13", "--bone-scale-sd", "0.04", "--offset-jitter-mm", "10"]);
     let tilted = run("tilt", &["--bone-tilt-deg", "4"]);
-    for (name, bytes) in [("mirror", &mirrored), ("wide", &wide), ("tilt", &tilted)] {
+    let held = run("posture", &["--posture-deg", "15", "--posture-joints", "lhand,rhand"]);
+    for (name, bytes) in [("mirror", &mirrored), ("wide", &wide), ("tilt", &tilted), ("posture", &held)] {
         assert_ne!(&plain, bytes, "{name} wrote the default take");
         let reader = locap_synth::shard::ShardReader::new(bytes.as_slice()).unwrap();
         assert_eq!((reader.header().frames, reader.header().markers.len()), (343, 41), "{name}");
@@ -112,6 +113,17 @@ fn synth_mirror_and_subject_flags() {
         String::from_utf8_lossy(&out.stderr)
     );
     assert!(!dir.path().join("bad").exists(), "nothing is written after a usage error");
+    // A posture joint the skeleton lacks fails the take, naming the joint.
+    let out = locap()
+        .args(["synth", "--posture-deg", "10", "--posture-joints", "lhand,lpaw", "--motion"])
+        .arg(data.join("cmu-asfamc/02/02_01.amc"))
+        .arg("-o")
+        .arg(dir.path().join("paw"))
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(stderr.contains("lpaw") && stderr.contains("02_01.amc"), "{stderr}");
 }
 
 /// Bad input gives a clear message and the documented exit status.

@@ -9,7 +9,8 @@
 //! joint name; the factor times `KinematicSolver::refine_prior`, replacing the default's),
 //! `prior=W` (the pull itself), `offset=W` (the calibration's offset prior), `pass:GROUP=F`
 //! (the group's share of its pull in the refinement's first pass) and `kin` (the kinematic
-//! solver alone, no network); `base` alone: the default refinement. Prints, pooled by frames,
+//! solver alone, no network); `base` alone: the default refinement. `MODEL=FILE` refines
+//! that network instead of the shipped one. Prints, pooled by frames,
 //! JOE and JPE over all joints and over the joints the markers constrain, then JPE and JOE per
 //! joint.
 
@@ -69,7 +70,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     }
     let variants: Vec<String> =
         std::env::var("VARIANTS").unwrap_or_else(|_| "base".into()).split(';').map(str::to_string).collect();
-    let network = locap_nn::shipped::solver(&Default::default())?;
+    // `MODEL=FILE` measures another network in place of the shipped one.
+    let network = match std::env::var("MODEL") {
+        Ok(path) => locap_nn::solver::Solver::from_bytes(&std::fs::read(&path)?, &Default::default())?,
+        Err(_) => locap_nn::shipped::solver(&Default::default())?,
+    };
     let template = KinematicSolver::cmu41()?;
     let rotating = template.rotating();
     let constrained = template.constrained().to_vec();

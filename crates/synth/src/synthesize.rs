@@ -11,6 +11,15 @@
 //!   (`N(0, sd)` per axis), since subjects differ in rest pose as well as in bone length (CMU's
 //!   ASF files give hip, clavicle, neck and foot bones directions that differ by several
 //!   degrees between subjects);
+//! - **held posture** (off by default): the joints named in
+//!   [`Variation::posture_joints`] are turned by one random rotation for the whole take
+//!   (`N(0, sd)` per axis, its component about the bone itself removed), on top of the
+//!   motion's own rotations. How a subject holds the hands through a take is their own (CMU's
+//!   solutions of different subjects turn the hand from the forearm by tens of degrees in
+//!   opposite directions), so a network trained on a few subjects learns their habit instead
+//!   of reading the hand's marker (docs/benchmarks.md, "The hands' held posture in
+//!   training"); the twist about the bone is left out because a hand's one marker cannot show
+//!   it;
 //! - **offset jitter**: each marker's offset moves by `N(0, sd)` mm per axis, once per take
 //!   (markers are never placed twice on exactly the same spot);
 //! - **soft-tissue wobble**: a smooth displacement in the joint's frame, per marker and axis a
@@ -127,6 +136,15 @@ pub struct Variation {
     /// skeleton's own bone directions; files written before the field read as 0).
     #[serde(default)]
     pub bone_tilt_sd_deg: f64,
+    /// Standard deviation of the per-take held posture of the joints in `posture_joints`,
+    /// degrees per axis (0: the motion's own rotations; files written before the field read
+    /// as 0).
+    #[serde(default)]
+    pub posture_sd_deg: f64,
+    /// The joints whose held posture varies per take (by name; every one must be in the
+    /// skeleton), e.g. `lhand` and `rhand`.
+    #[serde(default)]
+    pub posture_joints: Vec<String>,
 }
 
 impl Default for Variation {
@@ -139,6 +157,8 @@ impl Default for Variation {
             wobble_mm: 2.0,
             wobble_hz: [0.5, 4.0],
             bone_tilt_sd_deg: 0.0,
+            posture_sd_deg: 0.0,
+            posture_joints: vec![],
         }
     }
 }
@@ -153,6 +173,8 @@ impl Variation {
             wobble_mm: 0.0,
             wobble_hz: [1.0, 1.0],
             bone_tilt_sd_deg: 0.0,
+            posture_sd_deg: 0.0,
+            posture_joints: vec![],
         }
     }
 
@@ -163,11 +185,13 @@ impl Variation {
             && lo > 0.0
             && hi >= lo
             && hi.is_finite()
-            && [self.bone_scale_sd, self.offset_jitter_mm, self.wobble_mm, self.bone_tilt_sd_deg]
+            && [self.bone_scale_sd, self.offset_jitter_mm, self.wobble_mm, self.bone_tilt_sd_deg, self.posture_sd_deg]
                 .iter()
                 .all(|v| v.is_finite() && *v >= 0.0)
-            // Beyond a right angle a "tilt" is another skeleton, not a subject.
+            // Beyond a right angle a "tilt" is another skeleton, and a "posture" another
+            // motion, not a subject.
             && self.bone_tilt_sd_deg <= 90.0
+            && self.posture_sd_deg <= 90.0
             && f0.is_finite()
             && f0 > 0.0
             && f1 >= f0
@@ -203,6 +227,10 @@ pub struct Subject {
     /// without tilt.
     #[serde(default)]
     pub bone_tilt_rad: Vec<[f64; 3]>,
+    /// Held posture of each joint, a rotation vector (axis times angle, radians) applied after
+    /// the joint's own rotation in every frame; empty without posture variation.
+    #[serde(default)]
+    pub posture_rad: Vec<[f64; 3]>,
     /// Wobble sinusoids per marker and axis.
     wobble: Vec<[Vec<Wave>; 3]>,
 }
@@ -237,7 +265,46 @@ impl Subject {
         let sd = variation.bone_tilt_sd_deg.to_radians();
         let bone_tilt_rad =
             if sd > 0.0 { (0..joints).map(|_| [0; 3].map(|_| sd * normal(rng))).collect() } else { vec![] };
-        Subject { global_scale, bone_scales, jitter_mm, bone_tilt_rad, wobble }
+        Subject { global_scale, bone_scales, jitter_mm, bone_tilt_rad, posture_rad: vec![], wobble }
+    }
+
+    /// Draws the held posture of [`Variation::posture_joints`] on `skeleton`: per named joint
+    /// `N(0, sd)` per axis, less its component along the joint's bone (the mean direction of
+    /// its children's rest offsets; a joint without children keeps all three axes). Draws
+    /// nothing from `rng` without posture variation, so earlier data sets' seeds keep their
+    /// subjects.
+    ///
+    /// # Errors
+    /// [`SynthError::BadSetting`] naming a joint the skeleton does not have.
+    pub fn draw_posture(
+        &mut self,
+        variation: &Variation,
+        skeleton: &Skeleton,
+        rng: &mut impl Rng,
+    ) -> Result<(), SynthError> {
+        self.posture_rad.clear();
+        if variation.posture_sd_deg == 0.0 || variation.posture_joints.is_empty() {
+            return Ok(());
+        }
+        if let Some(missing) = variation.posture_joints.iter().find(|n| skeleton.index_of(n).is_none()) {
+            return Err(SynthError::BadSetting(format!("posture joint `{missing}` is not in the skeleton")));
+        }
+        let sd = variation.posture_sd_deg.to_radians();
+        self.posture_rad = (0..skeleton.len())
+            .map(|k| {
+                let joint = &skeleton.joints()[k];
+                if !variation.posture_joints.contains(&joint.name) {
+                    return [0.0; 3];
+                }
+                let mut r = Vec3::from([0; 3].map(|_| sd * normal(rng)));
+                let bone: Vec3 = skeleton.children(k).map(|c| skeleton.joints()[c].offset_mm).sum();
+                if let Some(along) = bone.try_normalize(1e-9) {
+                    r -= along * r.dot(&along);
+                }
+                r.into()
+            })
+            .collect();
+        Ok(())
     }
 
     /// `skeleton`'s rest offsets turned by this subject's bone tilts (unchanged without tilt).
@@ -379,7 +446,8 @@ pub fn synthesize(
     }
     let bound = layout.bind(&motion.skeleton)?;
     let soft: Vec<f64> = bound.markers.iter().map(|m| m.soft_tissue).collect();
-    let subject = Subject::draw(&config.variation, motion.skeleton.len(), &soft, rng);
+    let mut subject = Subject::draw(&config.variation, motion.skeleton.len(), &soft, rng);
+    subject.draw_posture(&config.variation, &motion.skeleton, rng)?;
     let resampled = match config.rate_hz {
         Some(hz) => resample(motion, hz)?,
         None => motion.clone(),
@@ -391,6 +459,13 @@ pub fn synthesize(
         let rotations = (0..n).flat_map(|f| scaled.local_rotations(f).iter().copied()).collect();
         let root = (0..n).map(|f| scaled.root_position_mm(f)).collect();
         scaled = Motion::new(skeleton, rotations, root, scaled.frame_rate_hz())?;
+    }
+    if !subject.posture_rad.is_empty() {
+        let held: Vec<Quat> = subject.posture_rad.iter().map(|r| Quat::from_scaled_axis(Vec3::from(*r))).collect();
+        let n = scaled.frame_count();
+        let rotations = (0..n).flat_map(|f| scaled.local_rotations(f).iter().zip(&held).map(|(q, h)| q * h)).collect();
+        let root = (0..n).map(|f| scaled.root_position_mm(f)).collect();
+        scaled = Motion::new(scaled.skeleton.clone(), rotations, root, scaled.frame_rate_hz())?;
     }
     let take = markers_of(&scaled, &bound, &subject, config.lab)?;
     Ok(Synthesized { take, motion: scaled, subject })
@@ -687,6 +762,47 @@ mod tests {
             SynthConfig { variation: bad, ..SynthConfig::default() }.validate(),
             Err(SynthError::BadSetting(_))
         ));
+    }
+
+    /// A held posture turns the named joint by one rotation in every frame, never about its
+    /// own bone; the other joints, and without the setting the whole take, are the ones the
+    /// same seed drew before it existed.
+    #[test]
+    fn held_posture_turns_the_named_joints_alike_in_every_frame() {
+        let m = two_legs(30);
+        let layout = layout_two_legs();
+        let draw = |variation: Variation| {
+            let config = SynthConfig { variation, ..SynthConfig::default() };
+            synthesize(&m, &layout, &config, &mut rand::rngs::StdRng::seed_from_u64(9)).unwrap()
+        };
+        let plain = draw(Variation::default());
+        let held =
+            draw(Variation { posture_sd_deg: 20.0, posture_joints: vec!["lfemur".into()], ..Variation::default() });
+        assert!(plain.subject.posture_rad.is_empty());
+        assert_eq!(plain.subject.bone_scales, held.subject.bone_scales);
+        let turn = Vec3::from(held.subject.posture_rad[1]);
+        assert!(turn.norm() > 1e-3, "the named joint turns");
+        let bone = m.skeleton.joints()[2].offset_mm.normalize();
+        assert!(turn.dot(&bone).abs() < 1e-9, "not about its own bone");
+        for (k, r) in held.subject.posture_rad.iter().enumerate() {
+            assert!(k == 1 || *r == [0.0; 3], "joint {k} is not named");
+        }
+        let h = Quat::from_scaled_axis(turn);
+        for f in 0..m.frame_count() {
+            let (a, b) = (plain.motion.local_rotations(f), held.motion.local_rotations(f));
+            assert!((a[1] * h).angle_to(&b[1]) < 1e-9);
+            for k in [0, 2, 3, 4, 5] {
+                assert!(a[k].angle_to(&b[k]) < 1e-12);
+            }
+        }
+        // The knee marker rides the turned thigh.
+        assert!((plain.take.position_mm(0, 0).unwrap() - held.take.position_mm(0, 0).unwrap()).norm() > 1.0);
+        let unknown = Variation { posture_sd_deg: 5.0, posture_joints: vec!["lhand".into()], ..Variation::default() };
+        let config = SynthConfig { variation: unknown, ..SynthConfig::default() };
+        let err = synthesize(&m, &layout, &config, &mut rand::rngs::StdRng::seed_from_u64(9)).unwrap_err();
+        assert!(err.to_string().contains("lhand"), "{err}");
+        let bad = Variation { posture_sd_deg: f64::NAN, ..Variation::default() };
+        assert!(SynthConfig { variation: bad, ..SynthConfig::default() }.validate().is_err());
     }
 
     fn layout_two_legs() -> Layout {

@@ -68,7 +68,7 @@ pub struct Args {
     #[arg(long, default_value_t = 1, help_heading = "Synthesis")]
     seed: u64,
     /// No subject variation (markers exactly at the layout's offsets).
-    #[arg(long, help_heading = "Synthesis", conflicts_with_all = ["bone_scale", "bone_scale_sd", "offset_jitter_mm", "bone_tilt_deg"])]
+    #[arg(long, help_heading = "Synthesis", conflicts_with_all = ["bone_scale", "bone_scale_sd", "offset_jitter_mm", "bone_tilt_deg", "posture_deg"])]
     no_variation: bool,
     /// Range of the global bone-length scale of the random subjects (default 0.92 1.08).
     #[arg(long, num_args = 2, value_names = ["MIN", "MAX"], value_parser = crate::values::positive, help_heading = "Synthesis")]
@@ -82,6 +82,13 @@ pub struct Args {
     /// Standard deviation of the per-bone tilt of the rest offsets, degrees per axis (default 0).
     #[arg(long, value_name = "DEG", value_parser = crate::values::non_negative, help_heading = "Synthesis")]
     bone_tilt_deg: Option<f64>,
+    /// Standard deviation of the per-take held posture of the `--posture-joints`, degrees per
+    /// axis (one turn for the whole take, none about the bone itself; default 0).
+    #[arg(long, value_name = "DEG", value_parser = crate::values::non_negative, requires = "posture_joints", help_heading = "Synthesis")]
+    posture_deg: Option<f64>,
+    /// Joints whose held posture varies per take, comma-separated (e.g. `lhand,rhand`).
+    #[arg(long, value_name = "JOINTS", value_delimiter = ',', requires = "posture_deg", help_heading = "Synthesis")]
+    posture_joints: Vec<String>,
     /// Mirror every motion left to right (across the motion frame's x = 0 plane, the lateral
     /// axis of CMU's ASF and BVH skeletons; left and right joints exchanged) before synthesis.
     #[arg(long, help_heading = "Synthesis")]
@@ -189,6 +196,8 @@ fn variation(args: &Args) -> Variation {
         bone_scale_sd: args.bone_scale_sd.unwrap_or(d.bone_scale_sd),
         offset_jitter_mm: args.offset_jitter_mm.unwrap_or(d.offset_jitter_mm),
         bone_tilt_sd_deg: args.bone_tilt_deg.unwrap_or(d.bone_tilt_sd_deg),
+        posture_sd_deg: args.posture_deg.unwrap_or(d.posture_sd_deg),
+        posture_joints: args.posture_joints.clone(),
         ..d
     }
 }
