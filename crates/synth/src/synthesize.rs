@@ -453,19 +453,16 @@ pub fn synthesize(
         None => motion.clone(),
     };
     let mut scaled = scale_motion(&resampled, &subject.bone_scales, subject.global_scale)?;
-    if !subject.bone_tilt_rad.is_empty() {
-        let skeleton = subject.tilt(&scaled.skeleton)?;
-        let n = scaled.frame_count();
-        let rotations = (0..n).flat_map(|f| scaled.local_rotations(f).iter().copied()).collect();
-        let root = (0..n).map(|f| scaled.root_position_mm(f)).collect();
-        scaled = Motion::new(skeleton, rotations, root, scaled.frame_rate_hz())?;
-    }
-    if !subject.posture_rad.is_empty() {
+    // The subject's bone tilts and held posture, in one rebuild of the motion (each leaves it
+    // as it is when not drawn).
+    if !subject.bone_tilt_rad.is_empty() || !subject.posture_rad.is_empty() {
         let held: Vec<Quat> = subject.posture_rad.iter().map(|r| Quat::from_scaled_axis(Vec3::from(*r))).collect();
         let n = scaled.frame_count();
-        let rotations = (0..n).flat_map(|f| scaled.local_rotations(f).iter().zip(&held).map(|(q, h)| q * h)).collect();
+        let rotations = (0..n)
+            .flat_map(|f| scaled.local_rotations(f).iter().enumerate().map(|(k, q)| held.get(k).map_or(*q, |h| q * h)))
+            .collect();
         let root = (0..n).map(|f| scaled.root_position_mm(f)).collect();
-        scaled = Motion::new(scaled.skeleton.clone(), rotations, root, scaled.frame_rate_hz())?;
+        scaled = Motion::new(subject.tilt(&scaled.skeleton)?, rotations, root, scaled.frame_rate_hz())?;
     }
     let take = markers_of(&scaled, &bound, &subject, config.lab)?;
     Ok(Synthesized { take, motion: scaled, subject })
