@@ -113,8 +113,8 @@ fn synthesized_02_01(data: &Path, dir: &Path, seed: &str) -> PathBuf {
     shards
 }
 
-/// `locap eval` on a held-out synthetic take: the Table-1 rows, JSON, charts, and the real-take
-/// comparison with CMU's own solution.
+/// `locap eval` on a held-out synthetic take: the Table-1 rows (a model and an ensemble of two),
+/// JSON, charts, and the real-take comparison with CMU's own solution.
 #[test]
 fn eval_prints_table_one() {
     let Some(data) = shared_data() else { return };
@@ -128,6 +128,9 @@ fn eval_prints_table_one() {
         c
     };
     let out = eval()
+        .arg("--ensemble")
+        .arg(repo().join("models/solver-cmu41.locapsv"))
+        .arg(repo().join("models/solver-cmu41-v2.locapsv"))
         .arg("--reference")
         .arg(data.join("cmu-asfamc/02/02_01.amc"))
         .arg("--json")
@@ -145,6 +148,11 @@ fn eval_prints_table_one() {
     // The shipped solver on an unseen subject: centimetres, not decimetres, of joint error.
     let (jpe, joe) = (method["jpe_mm"].as_f64().unwrap(), method["joe_deg"].as_f64().unwrap());
     assert!(jpe > 1.0 && jpe < 80.0 && joe > 0.5 && joe < 30.0, "JPE {jpe} mm, JOE {joe} deg");
+    // The ensemble is a column of its own, named by its members.
+    let ensemble = &report["methods"][1];
+    assert_eq!(ensemble["name"], "solver-cmu41&solver-cmu41-v2");
+    let ensemble_joe = ensemble["joe_deg"].as_f64().unwrap();
+    assert!(ensemble_joe > 0.5 && ensemble_joe < 30.0 && ensemble_joe != joe, "{ensemble_joe} deg");
     let real = &report["real"][0]["comparison"];
     assert_eq!(real["frames"], 343);
     assert!(real["jpe_mm"].as_f64().unwrap() < 100.0, "{real}");
@@ -277,12 +285,46 @@ fn the_later_body_models_turn_joints_closer_to_cmus_solution() {
     // Positions: 23.2 against 25.7 mm (both ways of measuring); a model that solved another
     // skeleton or frame would be decimetres off.
     assert!(second.jpe_mm < 35.0, "{second:?}");
-    // The third, built in (`locap eval` 7.45 degrees, 28.1 mm; here 5.30 degrees): the same
-    // holds.
-    let third = solved_against_cmu(None);
-    eprintln!("third model (built in) JOE {:.2} deg JPE {:.1} mm", third.joe_deg, third.jpe_mm);
+    // The third (`locap eval` 7.45 degrees, 28.1 mm; here 5.30 degrees): the same holds.
+    let third = solved_against_cmu(Some("models/solver-cmu41-v3.locapsv"));
+    eprintln!("third model JOE {:.2} deg JPE {:.1} mm", third.joe_deg, third.jpe_mm);
     assert!(third.joe_deg < 0.85 * first.joe_deg, "{third:?} against {first:?}");
     assert!(third.jpe_mm < 35.0, "{third:?}");
+}
+
+/// The built-in solver is the three body models as one ensemble: `--model` given three times
+/// (third, second, first) solves a take to the same BVH, byte for byte. Models of another
+/// marker set or skeleton do not join: the command fails naming the file.
+#[test]
+fn the_built_in_solver_is_the_three_models_as_one() {
+    let Some(data) = shared_data() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let take = data.join("cmu-c3d/02_01.c3d");
+    let solve = |models: &[&str], out: &Path| {
+        let mut c = locap();
+        c.arg("solve").arg(&take).args(["--method", "network", "-o"]).arg(out);
+        for m in models {
+            c.arg("--model").arg(repo().join(m));
+        }
+        c.output().unwrap()
+    };
+    let (built_in, given) = (dir.path().join("built-in.bvh"), dir.path().join("given.bvh"));
+    let three = ["models/solver-cmu41-v3.locapsv", "models/solver-cmu41-v2.locapsv", "models/solver-cmu41.locapsv"];
+    for (models, out) in [(&[][..], &built_in), (&three[..], &given)] {
+        let run = solve(models, out);
+        assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+    }
+    assert_eq!(std::fs::read(&built_in).unwrap(), std::fs::read(&given).unwrap());
+    // The third model alone answers otherwise: the members are used.
+    let alone = dir.path().join("alone.bvh");
+    assert!(solve(&three[..1], &alone).status.success());
+    assert_ne!(std::fs::read(&built_in).unwrap(), std::fs::read(&alone).unwrap());
+    let mixed = dir.path().join("mixed.bvh");
+    let run = solve(&["models/solver-cmu41-v3.locapsv", "models/solver-hand-left.locapsv"], &mixed);
+    assert!(!run.status.success());
+    let err = String::from_utf8_lossy(&run.stderr);
+    assert!(err.contains("solver-hand-left.locapsv") && err.contains("skeleton"), "{err}");
+    assert!(!mixed.exists());
 }
 
 /// The refinement on a template moved halfway to the skeleton the network predicts for the

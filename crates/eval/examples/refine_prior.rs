@@ -10,7 +10,7 @@
 //! `prior=W` (the pull itself), `offset=W` (the calibration's offset prior), `pass:GROUP=F`
 //! (the group's share of its pull in the refinement's first pass) and `kin` (the kinematic
 //! solver alone, no network); `base` alone: the default refinement. `MODEL=FILE` refines
-//! that network instead of the shipped one. Prints, pooled by frames,
+//! that network instead of the shipped one, `MODEL=A,B` the mean of several. Prints, pooled by frames,
 //! JOE and JPE over all joints and over the joints the markers constrain, then JPE and JOE per
 //! joint.
 
@@ -70,9 +70,17 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     }
     let variants: Vec<String> =
         std::env::var("VARIANTS").unwrap_or_else(|_| "base".into()).split(';').map(str::to_string).collect();
-    // `MODEL=FILE` measures another network in place of the shipped one.
+    // `MODEL=FILE` measures another network in place of the shipped one; `MODEL=A,B` the mean
+    // of several (`locap_nn::solver::ensemble`).
     let network = match std::env::var("MODEL") {
-        Ok(path) => locap_nn::solver::Solver::from_bytes(&std::fs::read(&path)?, &Default::default())?,
+        Ok(paths) => {
+            let mut solvers = paths
+                .split(',')
+                .map(|p| Ok(locap_nn::solver::Solver::from_bytes(&std::fs::read(p)?, &Default::default())?))
+                .collect::<Result<Vec<_>, Box<dyn std::error::Error>>>()?;
+            let first = solvers.remove(0);
+            first.with_members(solvers)?
+        }
         Err(_) => locap_nn::shipped::solver(&Default::default())?,
     };
     let template = KinematicSolver::cmu41()?;

@@ -31,19 +31,30 @@ pub const REFINERS: &[Shipped] = &[
     Shipped { name: "refiner-hand-right.locapnn", bytes: include_bytes!("../../../models/refiner-hand-right.locapnn") },
 ];
 
-/// The shipped solver: the third body model (`models/README.md`, "solver-cmu41-v3"), whose
-/// answer, refined by the kinematic solver, is closer to the held-out subject's motion than the
-/// first model's on every measure but one (docs/benchmarks.md, "Neural solver, third model").
-/// The first and second models ship beside it for `--model` and comparison.
+/// The shipped solver: the third body model (`models/README.md`, "solver-cmu41-v3"), with the
+/// first and second answering beside it as an ensemble ([`Solver::with_members`]: the three
+/// answers averaged per frame and joint). Refined by the kinematic solver, the ensemble's answer
+/// is closer to the held-out subject's motion on the joints the markers constrain than the third
+/// model's alone (docs/benchmarks.md, "The three networks as one").
 pub const SOLVER: Shipped =
     Shipped { name: "solver-cmu41-v3.locapsv", bytes: include_bytes!("../../../models/solver-cmu41-v3.locapsv") };
 
-/// The shipped solver, loaded on `device`.
+/// The models that answer beside [`SOLVER`] in the shipped ensemble.
+pub const SOLVER_MEMBERS: &[Shipped] = &[
+    Shipped { name: "solver-cmu41-v2.locapsv", bytes: include_bytes!("../../../models/solver-cmu41-v2.locapsv") },
+    Shipped { name: "solver-cmu41.locapsv", bytes: include_bytes!("../../../models/solver-cmu41.locapsv") },
+];
+
+/// The shipped solver, loaded on `device`: [`SOLVER`] with [`SOLVER_MEMBERS`] beside it.
 ///
 /// # Errors
-/// The shipped file does not load (a build from a damaged checkout).
+/// A shipped file does not load (a build from a damaged checkout).
 pub fn solver(device: &Device) -> Result<Solver, NnError> {
-    Solver::from_bytes(SOLVER.bytes, device).map_err(|e| NnError::BadModel(format!("shipped {}: {e}", SOLVER.name)))
+    let load = |s: &Shipped| {
+        Solver::from_bytes(s.bytes, device).map_err(|e| NnError::BadModel(format!("shipped {}: {e}", s.name)))
+    };
+    let members = SOLVER_MEMBERS.iter().map(load).collect::<Result<Vec<_>, _>>()?;
+    load(&SOLVER)?.with_members(members)
 }
 
 /// The shipped refiners whose markers `take` carries, loaded on `device`, named `shipped

@@ -31,6 +31,10 @@ pub struct Args {
     /// Solver models to compare (from `locap train solve`); named by file stem.
     #[arg(long, required = true, num_args = 1.., value_name = "MODEL", help_heading = "Input")]
     models: Vec<PathBuf>,
+    /// Also score these models as one ensemble, their answers averaged per frame and joint
+    /// (`locap solve --model A --model B`); named by their file stems joined with `&`.
+    #[arg(long, num_args = 2.., value_name = "MODEL", help_heading = "Input")]
+    ensemble: Vec<PathBuf>,
     /// Gap-fill refiner for the cleaning (default: EDM alone).
     #[arg(long, value_name = "MODEL", help_heading = "Input")]
     refiner: Option<PathBuf>,
@@ -158,16 +162,27 @@ pub fn run(args: Args) -> Result<ExitCode> {
             args.reference.len()
         )));
     }
-    let given = args.models.iter().chain(&args.refiner).chain(&args.real).chain(&args.reference);
+    let given = args.models.iter().chain(&args.ensemble).chain(&args.refiner).chain(&args.real).chain(&args.reference);
     crate::inputs::protect(&given.map(PathBuf::as_path).collect::<Vec<_>>())?;
     crate::inputs::check_outputs(args.json.as_slice())?;
     crate::inputs::expand(std::slice::from_ref(&args.data), &["shard"])?;
     crate::inputs::check_outputs(args.json.as_slice())?;
     let device = Default::default();
     let mut solvers = Vec::new();
-    for path in &args.models {
+    let load = |path: &PathBuf| -> Result<Solver> {
         let bytes = std::fs::read(path).with_context(|| format!("{}: cannot read the model", path.display()))?;
-        solvers.push((stem(path), Solver::from_bytes(&bytes, &device).with_context(|| format!("{}", path.display()))?));
+        Solver::from_bytes(&bytes, &device).with_context(|| format!("{}", path.display()))
+    };
+    for path in &args.models {
+        solvers.push((stem(path), load(path)?));
+    }
+    if let Some((first, rest)) = args.ensemble.split_first() {
+        // Each member joins on its own, so a model that cannot is the one named.
+        let ensemble = rest.iter().try_fold(load(first)?, |solver, path| {
+            solver.with_members(vec![load(path)?]).with_context(|| path.display().to_string())
+        })?;
+        let name = args.ensemble.iter().map(|p| stem(p)).collect::<Vec<_>>().join("&");
+        solvers.push((name, ensemble));
     }
     let names: Vec<&String> = solvers.iter().map(|(n, _)| n).collect();
     if (1..names.len()).any(|i| names[..i].contains(&names[i])) {

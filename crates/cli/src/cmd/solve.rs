@@ -25,9 +25,10 @@
 //! degrees, and the wrist joints' samples within 60 mm of their wrist markers' mean
 //! (`locap_eval::solver::wrists_within`), which needs no reference motion.
 //!
-//! Without `--model`, the solver shipped with locap is used (`locap_nn::shipped::solver`,
-//! `models/solver-cmu41-v3.locapsv`: the CMU 41-marker set on the CMU ASF skeleton, built into
-//! the binary). The cleaning is `locap_clean::clean_with` with its defaults, and `--markers-out`
+//! Without `--model`, the solver shipped with locap is used (`locap_nn::shipped::solver`: the
+//! three body networks of `models/`, the CMU 41-marker set on the CMU ASF skeleton, as one
+//! ensemble, built into the binary); `--model` given more than once makes an ensemble of the
+//! files. The cleaning is `locap_clean::clean_with` with its defaults, and `--markers-out`
 //! keeps the input file's parameters and analog data and records the cleaning in the `LOCAP`
 //! group, as `locap clean` does.
 
@@ -82,9 +83,11 @@ pub struct Args {
     /// Also write the cleaned markers as C3D: a file (one input) or a folder.
     #[arg(long, value_name = "PATH", help_heading = "Output")]
     markers_out: Option<PathBuf>,
-    /// Solver model (from `locap train solve`). Default: the built-in CMU 41-marker solver.
+    /// Solver model (from `locap train solve`); given more than once, an ensemble whose
+    /// answers are averaged per frame and joint (models of one marker set and skeleton).
+    /// Default: the built-in CMU 41-marker solver.
     #[arg(long, value_name = "MODEL", help_heading = "Models")]
-    model: Option<PathBuf>,
+    model: Vec<PathBuf>,
     /// Gap-filling method, as `locap clean --method`. `neural` refines EDM with the shipped
     /// refiners that fit the take's markers (or `--refiner`).
     #[arg(long, value_enum, default_value_t = FillArg::Auto, value_name = "METHOD", help_heading = "Filling")]
@@ -218,18 +221,26 @@ fn read_model(path: &Path) -> Result<Vec<u8>> {
 
 /// Runs `locap solve`.
 pub fn run(args: Args) -> Result<ExitCode> {
-    let auxiliary = [args.model.as_ref(), args.refiner.as_ref(), args.layout.as_ref(), args.skeleton.as_ref()];
-    inputs::protect(&auxiliary.iter().flatten().map(|p| p.as_path()).collect::<Vec<_>>())?;
-    let model = args.model.as_deref().map(read_model).transpose()?;
+    let auxiliary = [args.refiner.as_ref(), args.layout.as_ref(), args.skeleton.as_ref()];
+    let given = args.model.iter().chain(auxiliary.iter().flatten().copied());
+    inputs::protect(&given.map(|p| p.as_path()).collect::<Vec<_>>())?;
+    let models = args.model.iter().map(|p| read_model(p)).collect::<Result<Vec<_>>>()?;
     let refiner = args.refiner.as_deref().map(read_model).transpose()?;
     // Check the models once up front, so a bad file is one clear error and not one per take.
     let device = Default::default();
-    let load_solver = |device: &_| match &model {
-        Some(bytes) => Solver::from_bytes(bytes, device),
-        None => locap_nn::shipped::solver(device),
+    let load_solver = |device: &_| -> Result<Solver> {
+        let Some((first, rest)) = models.split_first() else {
+            return locap_nn::shipped::solver(device).context("the built-in solver");
+        };
+        let named = |bytes: &Vec<u8>, k: usize| {
+            Solver::from_bytes(bytes, device).with_context(|| args.model[k].display().to_string())
+        };
+        // Each member joins on its own, so a model that cannot is the one named.
+        rest.iter().enumerate().try_fold(named(first, 0)?, |solver, (k, bytes)| {
+            solver.with_members(vec![named(bytes, k + 1)?]).with_context(|| args.model[k + 1].display().to_string())
+        })
     };
-    let probe = load_solver(&device)
-        .with_context(|| args.model.as_ref().map_or("the built-in solver".into(), |p| p.display().to_string()))?;
+    let probe = load_solver(&device)?;
     if let (Some(bytes), Some(path)) = (&refiner, &args.refiner) {
         Refiner::from_bytes(bytes, &device).with_context(|| format!("{}", path.display()))?;
     }

@@ -167,6 +167,9 @@ pub struct Solver {
     pub meta: SolverMeta,
     /// The network.
     pub net: SolverNet,
+    /// Networks trained alike that answer beside this one ([`Solver::with_members`]); empty
+    /// for a single network.
+    members: Vec<Solver>,
     device: Device,
 }
 
@@ -197,15 +200,51 @@ impl Solver {
     pub fn new(meta: SolverMeta, device: &Device) -> Result<Solver, NnError> {
         meta.check()?;
         let net = SolverNet::new(&meta.architecture, &meta.graph, device);
-        Ok(Solver { meta, net, device: device.clone() })
+        Ok(Solver { meta, net, members: Vec::new(), device: device.clone() })
     }
 
     /// A solver from its parts (training uses it to save its network).
     pub fn from_parts(meta: SolverMeta, net: SolverNet, device: &Device) -> Solver {
-        Solver { meta, net, device: device.clone() }
+        Solver { meta, net, members: Vec::new(), device: device.clone() }
     }
 
-    /// The model file bytes.
+    /// This solver with `others` beside it, an ensemble: [`Solver::solve_cleaned`] then
+    /// averages the answers of all of them ([`super::ensemble`]). Each keeps its own input and
+    /// output normalisation; they must share the marker set, skeleton, local frame and lab.
+    ///
+    /// # Errors
+    /// A member of another marker set, skeleton (joint names and parents), frame or lab.
+    pub fn with_members(mut self, others: Vec<Solver>) -> Result<Solver, NnError> {
+        for other in &others {
+            let (a, b) = (&self.meta, &other.meta);
+            let same_skeleton = a.skeleton.len() == b.skeleton.len()
+                && a.skeleton
+                    .joints()
+                    .iter()
+                    .zip(b.skeleton.joints())
+                    .all(|(x, y)| x.name == y.name && x.parent == y.parent);
+            if a.markers != b.markers
+                || !same_skeleton
+                || a.frame != b.frame
+                || a.lab != b.lab
+                || a.rotating != b.rotating
+            {
+                return Err(NnError::BadModel(
+                    "an ensemble's models must share the marker set, skeleton, local frame and lab".into(),
+                ));
+            }
+        }
+        self.members.extend(others);
+        Ok(self)
+    }
+
+    /// How many networks answer: 1, or the ensemble's size.
+    pub fn networks(&self) -> usize {
+        1 + self.members.iter().map(Solver::networks).sum::<usize>()
+    }
+
+    /// The model file bytes (of this network alone: an ensemble's members are files of their
+    /// own).
     ///
     /// # Errors
     /// burn cannot serialise the weights.
@@ -245,6 +284,19 @@ impl Solver {
     /// # Errors
     /// The take lacks model markers, or its waist frame is never defined.
     pub fn solve_cleaned(&self, cleaned: &Cleaned, rate_hz: f64) -> Result<Motion, NnError> {
+        let own = self.solve_cleaned_alone(cleaned, rate_hz)?;
+        if self.members.is_empty() {
+            return Ok(own);
+        }
+        let mut answers = vec![own];
+        for member in &self.members {
+            answers.push(member.solve_cleaned(cleaned, rate_hz)?);
+        }
+        super::ensemble::average_motions(&answers)
+    }
+
+    /// This network's answer alone, whatever members it has.
+    fn solve_cleaned_alone(&self, cleaned: &Cleaned, rate_hz: f64) -> Result<Motion, NnError> {
         let input = LocalInput::new(cleaned, &self.meta.markers, &self.meta.frame)?;
         let decoded = self.run(&input);
         let t = input.local.frames;

@@ -8,6 +8,7 @@
 //!   truth in the waist frame.
 //! * [`train`]: Eq. 5 training with the shared harness ([`crate::harness`]).
 //! * [`file`]: the model file (`LOCAPSV\0`) and inference on a take.
+//! * [`ensemble`]: several networks' answers for a take, averaged.
 //!
 //! The paper's metrics (JOE, JPE, OMPE) on held-out shards are in `locap_eval::solver`.
 //!
@@ -17,6 +18,7 @@
 //! body and finger motion, which the data (CMU bodies, ART hands) does not have.
 
 pub mod data;
+pub mod ensemble;
 pub mod file;
 pub mod net;
 pub mod train;
