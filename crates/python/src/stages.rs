@@ -249,9 +249,18 @@ pub struct PyMotion {
     cleaned: PyTake,
 }
 
+/// One solver model file, or several as one ensemble (`locap solve --model A --model B`).
+#[derive(FromPyObject)]
+pub enum ModelFiles {
+    /// One file.
+    One(PathBuf),
+    /// Several, their answers averaged.
+    Many(Vec<PathBuf>),
+}
+
 /// `locap.solve(take, ...)`: the whole `locap solve` pipeline (swaps, outliers, the fill,
-/// then the motion solver). `model`: a solver from `locap train solve` (default: the built-in
-/// CMU 41-marker solver); `refiner`: a refiner model; `method`: as `locap solve --method`
+/// then the motion solver). `model`: a solver from `locap train solve`, or a list of them as
+/// one ensemble (default: the built-in CMU 41-marker solver); `refiner`: a refiner model; `method`: as `locap solve --method`
 /// (`auto`, `network`, `ik`, `refine`); `layout`: the kinematic solver's layout, with a
 /// skeleton section (default: the CMU 41-marker layout).
 #[pyfunction]
@@ -259,12 +268,17 @@ pub struct PyMotion {
 pub fn solve(
     py: Python<'_>,
     take: PyRef<'_, PyTake>,
-    model: Option<PathBuf>,
+    model: Option<ModelFiles>,
     fill: &str,
     refiner: Option<PathBuf>,
     method: &str,
     layout: Option<PathBuf>,
 ) -> PyResult<PyMotion> {
+    let model = match model {
+        None => Vec::new(),
+        Some(ModelFiles::One(path)) => vec![path],
+        Some(ModelFiles::Many(paths)) => paths,
+    };
     let (fill_method, refine) = fill_method(fill)?;
     let method = match method {
         "auto" => SolveMethod::Auto,
@@ -278,17 +292,24 @@ pub fn solve(
         None => Some(KinematicSolver::cmu41().map_err(|e| failure(None, &e.into()))?),
         Some(path) => Some(read_kinematic(path).map_err(|e| failure(Some(path), &e))?),
     };
-    let model_bytes = read_models(model.as_slice())?.pop();
+    let model_bytes = read_models(&model)?;
     let refiner_bytes = read_models(refiner.as_slice())?.pop();
-    let load = |device: &_| match &model_bytes {
-        Some(bytes) => Solver::from_bytes(bytes, device),
-        None => locap_nn::shipped::solver(device),
+    // As `locap solve --model`: each member joins on its own, so a model that cannot is the one
+    // named.
+    let load = |device: &_| -> anyhow::Result<Solver> {
+        let Some((first, rest)) = model_bytes.split_first() else {
+            return locap_nn::shipped::solver(device).context("the built-in solver");
+        };
+        let named = |bytes: &Vec<u8>, k: usize| {
+            Solver::from_bytes(bytes, device).with_context(|| model[k].display().to_string())
+        };
+        rest.iter().enumerate().try_fold(named(first, 0)?, |solver, (k, bytes)| {
+            solver.with_members(vec![named(bytes, k + 1)?]).with_context(|| model[k + 1].display().to_string())
+        })
     };
     // The models are checked once up front, so a bad file names itself, not the take.
     let device = Default::default();
-    load(&device)
-        .with_context(|| model.as_ref().map_or("the built-in solver".into(), |p| p.display().to_string()))
-        .map_err(|e| failure(model.as_deref(), &e))?;
+    load(&device).map_err(|e| failure(None, &e))?;
     if let (Some(bytes), Some(path)) = (&refiner_bytes, &refiner) {
         Refiner::from_bytes(bytes, &device)
             .with_context(|| path.display().to_string())

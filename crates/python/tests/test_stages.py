@@ -92,6 +92,20 @@ def test_solve_methods_match_locap_solve(cli, tmp_path):
         locap.solve(take, method="ik", layout=plain)
 
 
+def test_solve_takes_an_ensemble_as_locap_solve_does(cli, tmp_path):
+    """``model=[...]`` is ``locap solve --model A --model B ...``: the built-in solver is the three
+    body models as one, and a model of another marker set cannot join (the error names it)."""
+    take = locap.read(EXAMPLE)
+    models = [REPO / "models" / m for m in ("solver-cmu41-v3.locapsv", "solver-cmu41-v2.locapsv", "solver-cmu41.locapsv")]
+    locap.solve(take, method="network", model=models).write_bvh(tmp_path / "py.bvh")
+    run_cli(cli, "solve", EXAMPLE, "--method", "network", "-o", tmp_path / "cli.bvh")
+    assert (tmp_path / "py.bvh").read_bytes() == (tmp_path / "cli.bvh").read_bytes()
+    locap.solve(take, method="network", model=str(models[0])).write_bvh(tmp_path / "one.bvh")
+    assert (tmp_path / "one.bvh").read_bytes() != (tmp_path / "cli.bvh").read_bytes()
+    with pytest.raises(locap.Error, match="solver-hand-left.locapsv"):
+        locap.solve(take, model=[models[0], REPO / "models" / "solver-hand-left.locapsv"])
+
+
 def test_label_names_a_shuffled_take_as_locap_label(cli, tmp_path):
     raw = tmp_path / "raw.c3d"
     run_cli(cli, "unlabel", EXAMPLE, "-o", raw, "--ghosts", "0", "--drop", "none", "--seed", "3")
