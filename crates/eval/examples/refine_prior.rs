@@ -74,12 +74,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     // of several (`locap_nn::solver::ensemble`).
     let network = match std::env::var("MODEL") {
         Ok(paths) => {
-            let mut solvers = paths
+            let files = paths
                 .split(',')
-                .map(|p| Ok(locap_nn::solver::Solver::from_bytes(&std::fs::read(p)?, &Default::default())?))
-                .collect::<Result<Vec<_>, Box<dyn std::error::Error>>>()?;
-            let first = solvers.remove(0);
-            first.with_members(solvers)?
+                .map(|p| Ok((p.to_string(), std::fs::read(p)?)))
+                .collect::<std::io::Result<Vec<_>>>()?;
+            locap_nn::solver::ensemble::from_named_files(&files, &Default::default())?
         }
         Err(_) => locap_nn::shipped::solver(&Default::default())?,
     };

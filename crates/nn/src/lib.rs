@@ -156,6 +156,15 @@ pub enum NnError {
         #[source]
         source: Box<NnError>,
     },
+    /// Something wrong with one model file.
+    #[error("{name}: {source}")]
+    InModel {
+        /// The model (its path).
+        name: String,
+        /// What is wrong.
+        #[source]
+        source: Box<NnError>,
+    },
     /// A take that cannot be built from the data.
     #[error("{name}: {source}")]
     Take {

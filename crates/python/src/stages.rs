@@ -292,20 +292,15 @@ pub fn solve(
         None => Some(KinematicSolver::cmu41().map_err(|e| failure(None, &e.into()))?),
         Some(path) => Some(read_kinematic(path).map_err(|e| failure(Some(path), &e))?),
     };
-    let model_bytes = read_models(&model)?;
+    let model_files: Vec<(String, Vec<u8>)> =
+        model.iter().map(|p| p.display().to_string()).zip(read_models(&model)?).collect();
     let refiner_bytes = read_models(refiner.as_slice())?.pop();
-    // As `locap solve --model`: each member joins on its own, so a model that cannot is the one
-    // named.
+    // As `locap solve --model`.
     let load = |device: &_| -> anyhow::Result<Solver> {
-        let Some((first, rest)) = model_bytes.split_first() else {
+        if model_files.is_empty() {
             return locap_nn::shipped::solver(device).context("the built-in solver");
-        };
-        let named = |bytes: &Vec<u8>, k: usize| {
-            Solver::from_bytes(bytes, device).with_context(|| model[k].display().to_string())
-        };
-        rest.iter().enumerate().try_fold(named(first, 0)?, |solver, (k, bytes)| {
-            solver.with_members(vec![named(bytes, k + 1)?]).with_context(|| model[k + 1].display().to_string())
-        })
+        }
+        Ok(locap_nn::solver::ensemble::from_named_files(&model_files, device)?)
     };
     // The models are checked once up front, so a bad file names itself, not the take.
     let device = Default::default();

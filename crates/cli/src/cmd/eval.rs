@@ -176,13 +176,19 @@ pub fn run(args: Args) -> Result<ExitCode> {
     for path in &args.models {
         solvers.push((stem(path), load(path)?));
     }
-    if let Some((first, rest)) = args.ensemble.split_first() {
-        // Each member joins on its own, so a model that cannot is the one named.
-        let ensemble = rest.iter().try_fold(load(first)?, |solver, path| {
-            solver.with_members(vec![load(path)?]).with_context(|| path.display().to_string())
-        })?;
+    if !args.ensemble.is_empty() {
+        let files = args
+            .ensemble
+            .iter()
+            .map(|p| {
+                Ok((
+                    p.display().to_string(),
+                    std::fs::read(p).with_context(|| format!("{}: cannot read the model", p.display()))?,
+                ))
+            })
+            .collect::<Result<Vec<_>>>()?;
         let name = args.ensemble.iter().map(|p| stem(p)).collect::<Vec<_>>().join("&");
-        solvers.push((name, ensemble));
+        solvers.push((name, locap_nn::solver::ensemble::from_named_files(&files, &device)?));
     }
     let names: Vec<&String> = solvers.iter().map(|(n, _)| n).collect();
     if (1..names.len()).any(|i| names[..i].contains(&names[i])) {

@@ -224,21 +224,16 @@ pub fn run(args: Args) -> Result<ExitCode> {
     let auxiliary = [args.refiner.as_ref(), args.layout.as_ref(), args.skeleton.as_ref()];
     let given = args.model.iter().chain(auxiliary.iter().flatten().copied());
     inputs::protect(&given.map(|p| p.as_path()).collect::<Vec<_>>())?;
-    let models = args.model.iter().map(|p| read_model(p)).collect::<Result<Vec<_>>>()?;
+    let models =
+        args.model.iter().map(|p| Ok((p.display().to_string(), read_model(p)?))).collect::<Result<Vec<_>>>()?;
     let refiner = args.refiner.as_deref().map(read_model).transpose()?;
     // Check the models once up front, so a bad file is one clear error and not one per take.
     let device = Default::default();
     let load_solver = |device: &_| -> Result<Solver> {
-        let Some((first, rest)) = models.split_first() else {
+        if models.is_empty() {
             return locap_nn::shipped::solver(device).context("the built-in solver");
-        };
-        let named = |bytes: &Vec<u8>, k: usize| {
-            Solver::from_bytes(bytes, device).with_context(|| args.model[k].display().to_string())
-        };
-        // Each member joins on its own, so a model that cannot is the one named.
-        rest.iter().enumerate().try_fold(named(first, 0)?, |solver, (k, bytes)| {
-            solver.with_members(vec![named(bytes, k + 1)?]).with_context(|| args.model[k + 1].display().to_string())
-        })
+        }
+        Ok(locap_nn::solver::ensemble::from_named_files(&models, device)?)
     };
     let probe = load_solver(&device)?;
     if let (Some(bytes), Some(path)) = (&refiner, &args.refiner) {

@@ -9,6 +9,8 @@
 //! between them), the root positions and each bone's offset arithmetically.
 
 use crate::NnError;
+use crate::solver::Solver;
+use burn::prelude::Device;
 use locap_core::skeleton::Joint;
 use locap_core::{Motion, Quat, Skeleton, Vec3};
 
@@ -54,6 +56,23 @@ pub fn average_motions(motions: &[Motion]) -> Result<Motion, NnError> {
         root.push(motions.iter().map(|m| m.root_position_mm(f)).sum::<Vec3>() / n);
     }
     Motion::new(skeleton, rotations, root, first.frame_rate_hz()).map_err(NnError::Skeleton)
+}
+
+/// One solver from model files' bytes, each with the name an error gives it (its path): the
+/// first, with the rest beside it as an ensemble ([`Solver::with_members`]). Each member joins
+/// on its own, so a file that does not load, or a model that cannot join the first, is the one
+/// named.
+///
+/// # Errors
+/// No files, a file that is not a solver model, or one of another marker set or skeleton.
+pub fn from_named_files(files: &[(String, Vec<u8>)], device: &Device) -> Result<Solver, NnError> {
+    let in_model = |name: &str, e: NnError| NnError::InModel { name: name.to_string(), source: Box::new(e) };
+    let load = |(name, bytes): &(String, Vec<u8>)| Solver::from_bytes(bytes, device).map_err(|e| in_model(name, e));
+    let Some((first, rest)) = files.split_first() else {
+        return Err(NnError::BadModel("an ensemble of no solvers".into()));
+    };
+    rest.iter()
+        .try_fold(load(first)?, |solver, file| solver.with_members(vec![load(file)?]).map_err(|e| in_model(&file.0, e)))
 }
 
 #[cfg(test)]
@@ -121,12 +140,18 @@ mod tests {
         let device = Default::default();
         let shipped = crate::shipped::solver(&device).unwrap();
         assert_eq!(shipped.networks(), 3);
-        let hand = crate::solver::Solver::from_bytes(
-            &std::fs::read(concat!(env!("CARGO_MANIFEST_DIR"), "/../../models/solver-hand-left.locapsv")).unwrap(),
-            &device,
-        )
-        .unwrap();
-        let error = shipped.with_members(vec![hand]).unwrap_err();
+        let file = |name: &str| {
+            let path = format!("{}/../../models/{name}", env!("CARGO_MANIFEST_DIR"));
+            (name.to_string(), std::fs::read(path).unwrap())
+        };
+        let hand = file("solver-hand-left.locapsv");
+        let error = shipped.with_members(vec![Solver::from_bytes(&hand.1, &device).unwrap()]).unwrap_err();
         assert!(error.to_string().contains("marker set, skeleton"), "{error}");
+        // From files: the one that cannot join is named, and the three join.
+        let error = from_named_files(&[file("solver-cmu41-v3.locapsv"), hand], &device).unwrap_err();
+        assert!(error.to_string().starts_with("solver-hand-left.locapsv: "), "{error}");
+        let three = ["solver-cmu41-v3.locapsv", "solver-cmu41-v2.locapsv", "solver-cmu41.locapsv"].map(file);
+        assert_eq!(from_named_files(&three, &device).unwrap().networks(), 3);
+        assert!(from_named_files(&[], &device).is_err());
     }
 }
