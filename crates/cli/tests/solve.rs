@@ -187,9 +187,9 @@ fn eval_prints_table_one() {
 /// wrist joints stay within 60 mm of their markers.
 /// - CMU 01_01 (2751 frames): a motion no model trained on. Measured: 0 frame pairs (largest
 ///   9.9 degrees), 100% of the wrists.
-/// - CMU 85_12 (4499 frames): another subject, whose motion the built-in model learned only as
-///   the kinematic solver solved it (models/README.md). Measured: 1 pair, 20.1 degrees at the
-///   left foot (frames 3152-3153), 100% of the wrists. The foot's markers are not moving as a
+/// - CMU 85_12 (4499 frames): another subject, whose motion the built-in models learned only as
+///   the kinematic solver solved it (models/README.md). Measured: 1 pair, 20.7 degrees at the
+///   left foot (frames 3152-3153; 20.1 with the third model alone), 100% of the wrists. The foot's markers are not moving as a
 ///   foot does there: over frames 3146-3153 the ankle-to-toe distance goes 132 -> 78 -> 204
 ///   mm (151 mm median over the take) and the heel-to-toe one 199 -> 143 -> 228 mm (223).
 ///   Before two-axis joints were held on the products of their turns (`locap_label::ik`),
@@ -253,9 +253,10 @@ fn jumps_where_markers_hold(c3d: &Path, bvh: &Path) -> Vec<(usize, String)> {
 
 /// The later body models on the real take of the subject no model was trained on, against CMU's
 /// own solution: the second (`models/solver-cmu41-v2.locapsv`: mirrored motions and wider
-/// subject variation, models/README.md) and the third (built in: also motion solved from four
-/// more real takes) turn the joints closer than the first (`models/solver-cmu41.locapsv`),
-/// which is why they ship. (They do not place them closer: docs/benchmarks.md, "Neural solver,
+/// subject variation, models/README.md) and the third (`models/solver-cmu41-v3.locapsv`: also
+/// motion solved from four more real takes) turn the joints closer than the first
+/// (`models/solver-cmu41.locapsv`), which is why they ship (the three answer together as the
+/// built-in solver). (They do not place them closer: docs/benchmarks.md, "Neural solver,
 /// second model" and "third model".)
 #[test]
 fn the_later_body_models_turn_joints_closer_to_cmus_solution() {
