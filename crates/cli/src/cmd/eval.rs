@@ -169,24 +169,17 @@ pub fn run(args: Args) -> Result<ExitCode> {
     crate::inputs::check_outputs(args.json.as_slice())?;
     let device = Default::default();
     let mut solvers = Vec::new();
+    let read =
+        |path: &PathBuf| std::fs::read(path).with_context(|| format!("{}: cannot read the model", path.display()));
     let load = |path: &PathBuf| -> Result<Solver> {
-        let bytes = std::fs::read(path).with_context(|| format!("{}: cannot read the model", path.display()))?;
-        Solver::from_bytes(&bytes, &device).with_context(|| format!("{}", path.display()))
+        Solver::from_bytes(&read(path)?, &device).with_context(|| format!("{}", path.display()))
     };
     for path in &args.models {
         solvers.push((stem(path), load(path)?));
     }
     if !args.ensemble.is_empty() {
-        let files = args
-            .ensemble
-            .iter()
-            .map(|p| {
-                Ok((
-                    p.display().to_string(),
-                    std::fs::read(p).with_context(|| format!("{}: cannot read the model", p.display()))?,
-                ))
-            })
-            .collect::<Result<Vec<_>>>()?;
+        let files =
+            args.ensemble.iter().map(|p| Ok((p.display().to_string(), read(p)?))).collect::<Result<Vec<_>>>()?;
         let name = args.ensemble.iter().map(|p| stem(p)).collect::<Vec<_>>().join("&");
         solvers.push((name, locap_nn::solver::ensemble::from_named_files(&files, &device)?));
     }

@@ -25,9 +25,7 @@ pub fn average_motions(motions: &[Motion]) -> Result<Motion, NnError> {
     };
     let (sk, t) = (&first.skeleton, first.frame_count());
     for m in &motions[1..] {
-        let same_joints = m.skeleton.len() == sk.len()
-            && m.skeleton.joints().iter().zip(sk.joints()).all(|(a, b)| a.name == b.name && a.parent == b.parent);
-        if !same_joints || m.frame_count() != t || m.frame_rate_hz() != first.frame_rate_hz() {
+        if !same_joints(&m.skeleton, sk) || m.frame_count() != t || m.frame_rate_hz() != first.frame_rate_hz() {
             return Err(NnError::BadModel("the ensemble's solvers answer on different skeletons".into()));
         }
     }
@@ -56,6 +54,12 @@ pub fn average_motions(motions: &[Motion]) -> Result<Motion, NnError> {
         root.push(motions.iter().map(|m| m.root_position_mm(f)).sum::<Vec3>() / n);
     }
     Motion::new(skeleton, rotations, root, first.frame_rate_hz()).map_err(NnError::Skeleton)
+}
+
+/// Whether `a` and `b` have the same joints in the same order: names and parents (the bones'
+/// offsets may differ, as each network predicts its own).
+pub(crate) fn same_joints(a: &Skeleton, b: &Skeleton) -> bool {
+    a.len() == b.len() && a.joints().iter().zip(b.joints()).all(|(x, y)| x.name == y.name && x.parent == y.parent)
 }
 
 /// One solver from model files' bytes, each with the name an error gives it (its path): the

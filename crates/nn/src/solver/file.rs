@@ -217,12 +217,7 @@ impl Solver {
     pub fn with_members(mut self, others: Vec<Solver>) -> Result<Solver, NnError> {
         for other in &others {
             let (a, b) = (&self.meta, &other.meta);
-            let same_skeleton = a.skeleton.len() == b.skeleton.len()
-                && a.skeleton
-                    .joints()
-                    .iter()
-                    .zip(b.skeleton.joints())
-                    .all(|(x, y)| x.name == y.name && x.parent == y.parent);
+            let same_skeleton = super::ensemble::same_joints(&a.skeleton, &b.skeleton);
             if a.markers != b.markers
                 || !same_skeleton
                 || a.frame != b.frame
