@@ -140,6 +140,12 @@
 //!   quarter, a half and one second were within 0.01 of each other on the protocol grid;
 //!   the half was kept, and two other labs' takes were the held-out check
 //!   (docs/benchmarks.md).
+//! - The PCA candidate corrects what its linear model misses by what it missed in the poses
+//!   nearest the gap's ([`AutoConfig::pca_residual_neighbours`], eight frames of its window,
+//!   [`crate::baseline::pca`], "Residuals of the nearest poses"). A thigh marker on muscle or
+//!   a marker swinging on an arc is not a linear mix of the others, and a take that shows a
+//!   pose again shows the same miss again. Measured on the tuning takes and other labs' at
+//!   once (four, eight and twelve frames alike; docs/benchmarks.md).
 //! - The rigid fill with a spline in the donors' frame ([`FillMethod::RigidSpline`]) is a
 //!   candidate for gaps up to half a second only: on the real occlusion statistics it is the
 //!   best single method up to 60 frames at 120 Hz and worse than the plain rigid fill beyond,
@@ -261,6 +267,11 @@ pub struct AutoConfig {
     /// and beats PCA on short gaps because of it; a fill of a long gap owes nothing to its
     /// borders' error a second away.
     pub pca_border_fade_s: f64,
+    /// Complete frames of its window whose reconstruction errors correct the PCA candidate's
+    /// fill ([`baseline::pca::PcaConfig::residual_neighbours`]; 0: none). The linear model
+    /// misses what the posture does not explain linearly, and where the take shows a pose
+    /// again it misses it again by about as much.
+    pub pca_residual_neighbours: usize,
     /// Longest gap (seconds) spline and linear interpolation are candidates for. By default
     /// every gap: the trials already reject them on long gaps (a limit of a quarter second
     /// changed no choice on the take the defaults were chosen on).
@@ -364,6 +375,7 @@ impl Default for AutoConfig {
             pca_context_s: 30.0,
             pca_fit_frames: 500,
             pca_border_fade_s: 0.5,
+            pca_residual_neighbours: 8,
             interpolate_s: 100.0,
             rigid_spline_s: 0.5,
             markers: 10,
@@ -1104,7 +1116,11 @@ impl Context<'_> {
                     baseline::pca::PcaConfig::default()
                 };
                 let fade_s = config.pca_border_fade_s;
-                let config = baseline::pca::PcaConfig { border_fade_s: (fade_s > 0.0).then_some(fade_s), ..paper };
+                let config = baseline::pca::PcaConfig {
+                    border_fade_s: (fade_s > 0.0).then_some(fade_s),
+                    residual_neighbours: config.pca_residual_neighbours,
+                    ..paper
+                };
                 baseline::pca::fill_marker(&window.take, 0, first..first + range.len(), &config)
             }
             FillMethod::Rigid => {

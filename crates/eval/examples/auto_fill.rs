@@ -6,7 +6,7 @@
 //! cargo run -p locap-eval --release --example auto_fill -- [--takes 85_02,85_12,135_02,hdm05,kneel,rolling]
 //!     (or another lab's: hamner,rajrun,rajwalk,sprint,vicon)
 //!     [--seed 0] [--per-length 5] [--blend 2] [--trials 3] [--context 2] [--markers 10]
-//!     [--pca-markers 41] [--pca-context 30] [--pca-fit 500] [--pca-fade 0.5] [--interpolate 100] [--least-squares]
+//!     [--pca-markers 41] [--pca-context 30] [--pca-fit 500] [--pca-fade 0.5] [--pca-residuals 8] [--interpolate 100] [--least-squares]
 //!     [--neighbour-trials 2] [--neighbour-weight 0.5] [--score pooled|mean|median]
 //!     [--rigid-cluster 1.0] [--apart 4] [--loose 5] [--no-distance] [--no-pose-match] [--trial-time 0.5]
 //!     [--take-variance 10]
@@ -75,6 +75,7 @@ fn main() {
     set(get("--pca-context"), "--pca-context", &mut config.pca_context_s);
     set(get("--pca-fit"), "--pca-fit", &mut config.pca_fit_frames);
     set(get("--pca-fade"), "--pca-fade", &mut config.pca_border_fade_s);
+    set(get("--pca-residuals"), "--pca-residuals", &mut config.pca_residual_neighbours);
     set(get("--interpolate"), "--interpolate", &mut config.interpolate_s);
     set(get("--markers"), "--markers", &mut config.markers);
     set(get("--pca-markers"), "--pca-markers", &mut config.pca_markers);
