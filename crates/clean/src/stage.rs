@@ -162,7 +162,7 @@ impl Cleaned {
 /// assert_eq!((cleaned.filled_samples(), cleaned.still_missing()), (10, 0));
 /// let filled = cleaned.take().position_mm(95, 0).unwrap();
 /// assert!((filled - Vec3::new(285.0, 0.0, 1000.0)).norm() < 1.0);
-/// // What to store with the take (`LOCAP:FILLED A 91-100`, `LOCAP:METHOD Auto trials=3 blend=2`, ...).
+/// // What to store with the take (`LOCAP:FILLED A 91-100`, `LOCAP:METHOD Auto trials=3 blend=3`, ...).
 /// assert_eq!(cleaned.provenance().filled[0].frames, 90..100);
 /// # Ok::<(), locap_core::TakeError>(())
 /// ```
@@ -262,7 +262,7 @@ mod tests {
         assert!((spike.y - 100.0).abs() < 5.0, "the spike is refilled: {spike:?}");
         assert!(!cleaned.visible[120 * 4 + 2] && cleaned.visible[120 * 4 + 1]);
         let record = cleaned.provenance();
-        assert_eq!(record.method.as_deref(), Some("Auto trials=3 blend=2"));
+        assert_eq!(record.method.as_deref(), Some("Auto trials=3 blend=3"));
         assert_eq!(record.fills.len(), 1, "auto records what filled the gap");
         assert!(record.filled.contains(&MarkerFrames { marker: 1, frames: 100..110 }));
         assert_eq!(record.outliers.len(), 1);

@@ -26,7 +26,7 @@ fn the_pipeline_example_labels_cleans_solves_and_writes() {
     let take = file.to_take().unwrap();
     assert_eq!(take.frame_count(), 1200);
     let record = file.provenance(&take).unwrap();
-    assert_eq!(record.method.as_deref(), Some("Auto trials=3 blend=2"));
+    assert_eq!(record.method.as_deref(), Some("Auto trials=3 blend=3"));
     assert!(!record.filled.is_empty());
     let motion =
         locap_io::bvh::read_bvh_path(&dir.path().join("motion.bvh"), locap_core::LengthUnit::Centimetre).unwrap();

@@ -5,7 +5,7 @@
 //! ```text
 //! cargo run -p locap-eval --release --example auto_fill -- [--takes 85_02,85_12,135_02,hdm05,kneel,rolling]
 //!     (or another lab's: hamner,rajrun,rajwalk,sprint,vicon)
-//!     [--seed 0] [--per-length 5] [--blend 2] [--trials 3] [--context 2] [--markers 10]
+//!     [--seed 0] [--per-length 5] [--blend 3] [--trials 3] [--context 2] [--markers 10]
 //!     [--pca-markers 41] [--pca-context 30] [--pca-fit 500] [--pca-fade 0.5] [--pca-residuals 8] [--interpolate 100] [--least-squares]
 //!     [--neighbour-trials 2] [--neighbour-weight 0.5] [--score pooled|mean|median]
 //!     [--rigid-cluster 1.0] [--apart 4] [--loose 5] [--no-distance] [--no-pose-match] [--trial-time 0.5]
