@@ -731,8 +731,8 @@ mod tests {
     }
 
     /// What the linear model misses where a pose recurs is taken from the frames in that pose:
-    /// the bulge, 20 mm off the linear fill on average, comes back within a few millimetres;
-    /// without neighbours the fill is the paper's to the bit.
+    /// the bulge, about 13 mm off the linear fill on average, comes back within a fraction of
+    /// a millimetre.
     #[test]
     fn the_residuals_of_the_nearest_poses_correct_what_is_not_linear() {
         let truth = bulging(1000);
@@ -744,8 +744,6 @@ mod tests {
         let (before, after) = (mean_error(&paper, &truth, 0, 300..420), mean_error(&corrected, &truth, 0, 300..420));
         assert!(before > 8.0, "the linear fill is {before} mm off");
         assert!(after < before / 4.0, "corrected {after} mm, linear {before} mm");
-        let same = fill_marker(&holed, 0, 0..1000, &PcaConfig { residual_neighbours: 0, ..PcaConfig::default() });
-        assert!((300..420).all(|f| same.take.position_mm(f, 0) == paper.take.position_mm(f, 0)));
     }
 
     #[test]
