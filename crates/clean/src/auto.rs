@@ -26,8 +26,9 @@
 //!    short take may have no window of the gap's length to spare;
 //! 2. every candidate ([`FillMethod::Edm`], [`FillMethod::PcaAligned`], [`FillMethod::Rigid`],
 //!    [`FillMethod::RigidSpline`] for gaps up to [`AutoConfig::rigid_spline_s`],
-//!    [`FillMethod::Spline`], [`FillMethod::Linear`], [`FillMethod::Distance`] for gaps of at
-//!    least [`AutoConfig::distance_min_s`], [`FillMethod::PoseMatch`] for those too) fills
+//!    [`FillMethod::Spline`], [`FillMethod::Linear`], [`FillMethod::Distance`] and the
+//!    paper's [`FillMethod::Pca`] for gaps of at least [`AutoConfig::distance_min_s`];
+//!    [`FillMethod::PoseMatch`] for those too where [`AutoConfig::pose_match`] is set) fills
 //!    each trial; each is scored by its RMSE over the hidden samples of `i` in each trial,
 //!    averaged over the trials ([`TrialScore::MeanOfTrials`]; a neighbour trial's RMSE
 //!    counts at a quarter, [`AutoConfig::neighbour_weight`]). A sample a candidate leaves missing counts with the
@@ -130,11 +131,17 @@
 //! - PCA sees a wider window (30 s each side) than the other candidates (2 s): its
 //!   covariance gains from more poses, the interpolations do not, and EDM's ranking takes
 //!   the take's steadiness from the whole take already.
-//! - The PCA candidate is the paper's PCA in the aligned frame ([`FillMethod::PcaAligned`]),
-//!   instead of the paper's frame, not beside it: with both the choice was no better and
-//!   cost more. The frame's weights are the PCA's own (no parameter of its own); the change
-//!   was measured on all four takes of the tuning set, so its held-out evidence is another
-//!   lab's takes (numediart, the 62-marker set) and the real occlusion statistics.
+//! - The PCA candidates are the paper's PCA in the aligned frame ([`FillMethod::PcaAligned`])
+//!   and, for interior gaps of at least [`AutoConfig::distance_min_s`], in the paper's own
+//!   frame ([`FillMethod::Pca`], [`AutoConfig::paper_pca`]), both meeting the borders and
+//!   corrected by the residuals of the nearest poses (below). The aligned frame follows a
+//!   body that turns; where the body stays in place and faces one way (a treadmill run, a
+//!   lift at a table) turning every frame onto the mean shape only adds the alignment's
+//!   noise, and the paper's frame wins. The aligned frame's weights are the PCA's own (no
+//!   parameter of its own). The paper's frame was first tried beside the aligned one before
+//!   the border fade and the residuals, and was no better then; with them it helped the
+//!   tuning takes, other labs' takes and the real occlusion statistics alike
+//!   (docs/benchmarks.md, "The paper's PCA frame beside the aligned one").
 //! - The PCA candidate meets the gap's borders ([`AutoConfig::pca_border_fade_s`]): its
 //!   error at each border sample, reconstructed as if missing, is removed from its fill,
 //!   fading over half a second. The paper's reconstruction ignores the samples beside a gap
@@ -167,12 +174,13 @@
 //!   lab (HDM05) were held out (`locap bench fill --lengths`; the tuning example
 //!   `crates/eval/examples/auto_fill.rs`, the test `crates/eval/tests/auto_real.rs`). The
 //!   score and the neighbour weight were chosen by leaving each of six takes out in turn.
-//! - Pose matching ([`crate::pose_match`], since session 2026-12-06, 4) is a candidate for
-//!   interior gaps, on PCA's window. Alone it is worse than the aligned PCA on most takes;
-//!   as a candidate it helped both the tuning takes and another lab's (OpenSim's pipeline
-//!   takes, where the runs repeat one cycle and PCA was the only good candidate), because its
-//!   errors are not PCA's: it finds a pose, PCA mixes them (docs/benchmarks.md, "Pose
-//!   matching, an eighth candidate").
+//! - Pose matching ([`crate::pose_match`]) can be a candidate for interior gaps, on PCA's
+//!   window ([`AutoConfig::pose_match`]); from session 2026-12-06 (4) to 2026-12-07 (6) it
+//!   was one by default. Alone it is worse than the aligned PCA on most takes; as a
+//!   candidate it helped on OpenSim's pipeline takes, where the runs repeat one cycle and
+//!   the aligned PCA was the only good candidate. The paper's PCA frame took its place: it
+//!   brought the same there and more elsewhere, at about the same cost, and both together
+//!   took the 10-minute take past the issue's 10 s (docs/benchmarks.md).
 //! - Unlabeled points (`*N`) are not filled, as in [`crate::fill_gaps`].
 
 use crate::neighbours::{self, Selection};
@@ -187,8 +195,9 @@ use std::ops::Range;
 /// real gap for the window to qualify.
 pub const CHECKED_NEIGHBOURS: usize = 3;
 
-/// The candidates, in the order ties are broken.
-pub const CANDIDATES: [FillMethod; 8] = [
+/// The candidates, in the order ties are broken (the first three: those of gaps at the take's
+/// edges).
+pub const CANDIDATES: [FillMethod; 9] = [
     FillMethod::Edm,
     FillMethod::PcaAligned,
     FillMethod::Rigid,
@@ -197,6 +206,7 @@ pub const CANDIDATES: [FillMethod; 8] = [
     FillMethod::Linear,
     FillMethod::Distance,
     FillMethod::PoseMatch,
+    FillMethod::Pca,
 ];
 
 /// Markers besides one that fix a rigid body's pose: the partners of a rigid cluster.
@@ -345,8 +355,15 @@ pub struct AutoConfig {
     /// Whether pose matching ([`FillMethod::PoseMatch`]) is a candidate (for interior gaps of
     /// at least [`AutoConfig::distance_min_s`], as the distance fill: below it the
     /// interpolations win, and the many trials of the many short gaps made it the costliest
-    /// candidate).
+    /// candidate). Off by default: the paper's PCA ([`AutoConfig::paper_pca`]) brought what it
+    /// brought, at the same cost, and both together took the 10-minute take past 10 s.
     pub pose_match: bool,
+    /// Whether the paper's PCA in its own frame ([`FillMethod::Pca`], translated by the mean
+    /// trajectory, not turned) is a candidate beside the aligned one, for interior gaps of at
+    /// least [`AutoConfig::distance_min_s`]. Where the body stays in place and faces one way
+    /// (a treadmill, a lift at a table) turning every frame onto the mean shape only adds the
+    /// alignment's noise; where it turns, the aligned frame wins; the trials tell which.
+    pub paper_pca: bool,
 }
 
 impl AutoConfig {
@@ -395,7 +412,8 @@ impl Default for AutoConfig {
             rigid_cluster_loose_mm: 5.0,
             distance: true,
             distance_min_s: 0.1,
-            pose_match: true,
+            pose_match: false,
+            paper_pca: true,
         }
     }
 }
@@ -621,6 +639,7 @@ impl Context<'_> {
         let from_min = gap.len >= (self.config.distance_min_s * self.take.frame_rate_hz()).round() as usize;
         let distance = self.config.distance && from_min;
         let pose_match = self.config.pose_match && from_min;
+        let paper_pca = self.config.paper_pca && from_min;
         let candidates: Vec<FillMethod> = if edge == Edge::Inside && interpolates {
             CANDIDATES
                 .iter()
@@ -628,6 +647,7 @@ impl Context<'_> {
                 .filter(|c| rigid_spline || *c != FillMethod::RigidSpline)
                 .filter(|c| distance || *c != FillMethod::Distance)
                 .filter(|c| pose_match || *c != FillMethod::PoseMatch)
+                .filter(|c| paper_pca || *c != FillMethod::Pca)
                 .collect()
         } else {
             CANDIDATES[..3].to_vec()
