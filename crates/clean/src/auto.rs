@@ -178,9 +178,10 @@
 //!   window ([`AutoConfig::pose_match`]); from session 2026-12-06 (4) to 2026-12-07 (6) it
 //!   was one by default. Alone it is worse than the aligned PCA on most takes; as a
 //!   candidate it helped on OpenSim's pipeline takes, where the runs repeat one cycle and
-//!   the aligned PCA was the only good candidate. The paper's PCA frame took its place: it
-//!   brought the same there and more elsewhere, at about the same cost, and both together
-//!   took the 10-minute take past the 10 s (docs/benchmarks.md).
+//!   the aligned PCA was the only good candidate. The paper's PCA frame took its place:
+//!   beside it pose matching added little there and nothing on the tuning takes, at about
+//!   the same cost, and the two together took the 10-minute take past the 10 s
+//!   (docs/benchmarks.md).
 //! - Unlabeled points (`*N`) are not filled, as in [`crate::fill_gaps`].
 
 use crate::neighbours::{self, Selection};
@@ -355,8 +356,9 @@ pub struct AutoConfig {
     /// Whether pose matching ([`FillMethod::PoseMatch`]) is a candidate (for interior gaps of
     /// at least [`AutoConfig::distance_min_s`], as the distance fill: below it the
     /// interpolations win, and the many trials of the many short gaps made it the costliest
-    /// candidate). Off by default: the paper's PCA ([`AutoConfig::paper_pca`]) brought what it
-    /// brought, at the same cost, and both together took the 10-minute take past 10 s.
+    /// candidate). Off by default: beside the paper's PCA frame ([`AutoConfig::paper_pca`]),
+    /// which costs about as much, it added little, and the two together took the 10-minute
+    /// take past 10 s.
     pub pose_match: bool,
     /// Whether the paper's PCA in its own frame ([`FillMethod::Pca`], translated by the mean
     /// trajectory, not turned) is a candidate beside the aligned one, for interior gaps of at
@@ -1476,17 +1478,22 @@ mod tests {
     }
 
     #[test]
-    fn distance_smoothing_is_tried_from_a_tenth_of_a_second() {
+    fn distance_smoothing_and_the_papers_pca_are_tried_from_a_tenth_of_a_second() {
         let mut holed = cluster(900, |i| format!("M{i}"));
         hide(&mut holed, 0, 300..311);
         hide(&mut holed, 0, 600..612);
         let out = fill(&holed, &AutoConfig::default());
-        let tried = |frames: Range<usize>| {
+        let tried = |frames: Range<usize>, method: FillMethod| {
             let choice = out.choices.iter().find(|c| c.frames == frames).expect("the gap is recorded");
-            choice.trial_rmse_mm.iter().any(|(m, _)| *m == FillMethod::Distance)
+            choice.trial_rmse_mm.iter().any(|(m, _)| *m == method)
         };
-        assert!(!tried(300..311));
-        assert!(tried(600..612));
+        for method in [FillMethod::Distance, FillMethod::Pca] {
+            assert!(!tried(300..311, method), "{}", method.name());
+            assert!(tried(600..612, method), "{}", method.name());
+        }
+        // Pose matching only where asked for; the aligned PCA at every length.
+        assert!(!tried(600..612, FillMethod::PoseMatch));
+        assert!(tried(300..311, FillMethod::PcaAligned));
     }
 
     /// On a rigid cluster EDM and rigid are exact and win every trial; their blend is exact
