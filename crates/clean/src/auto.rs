@@ -140,17 +140,18 @@
 //!   noise, and the paper's frame wins. The aligned frame's weights are the PCA's own (no
 //!   parameter of its own). The paper's frame was first tried beside the aligned one before
 //!   the border fade and the residuals, and was no better then; with them it helped the
-//!   tuning takes, other labs' takes and the real occlusion statistics alike
-//!   (docs/benchmarks.md, "The paper's PCA frame beside the aligned one").
-//! - The PCA candidate meets the gap's borders ([`AutoConfig::pca_border_fade_s`]): its
-//!   error at each border sample, reconstructed as if missing, is removed from its fill,
+//!   tuning takes, OpenSim's and the Vicon take and the real occlusion statistics, and left
+//!   another lab's 68-marker take within 0.1 mm (docs/benchmarks.md, "The paper's PCA frame
+//!   beside the aligned one").
+//! - The PCA candidates meet the gap's borders ([`AutoConfig::pca_border_fade_s`]): each
+//!   one's error at each border sample, reconstructed as if missing, is removed from its fill,
 //!   fading over half a second. The paper's reconstruction ignores the samples beside a gap
 //!   and jumps at both borders, which lost it every short gap to interpolation and the
 //!   rigid fill; corrected across the whole gap it lost the 2 s gaps instead. Fades of a
 //!   quarter, a half and one second were within 0.01 of each other on the protocol grid;
 //!   the half was kept, and two other labs' takes were the held-out check
 //!   (docs/benchmarks.md).
-//! - The PCA candidate corrects what its linear model misses by what it missed in the poses
+//! - The PCA candidates correct what their linear model misses by what it missed in the poses
 //!   nearest the gap's ([`AutoConfig::pca_residual_neighbours`], eight frames of its window,
 //!   [`crate::baseline::pca`], "Residuals of the nearest poses"). A thigh marker on muscle or
 //!   a marker swinging on an arc is not a linear mix of the others, and a take that shows a

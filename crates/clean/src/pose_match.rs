@@ -27,8 +27,10 @@
 //!    borders (one at the take's edges).
 //!
 //! Where the take never showed the pose, the nearest shapes are far and the fill is poor: the
-//! method is one of the per-gap choice's candidates ([`crate::auto`]), which measures it on
-//! trial gaps before using it, and `locap clean --method pose-match` alone for comparison.
+//! method can be one of the per-gap choice's candidates ([`crate::auto`], where
+//! `AutoConfig::pose_match` is set; off by default since the paper's PCA frame became one),
+//! which measures it on trial gaps before using it, and `locap clean --method pose-match`
+//! alone for comparison.
 
 use crate::neighbours::{self, Selection};
 use crate::{Filled, baseline, procrustes};

@@ -67,8 +67,8 @@
 //! reconstruction is turned back. Everything else is the paper's R2 as above. Where the
 //! weights leave the predictors on a line ([`MIN_ALIGNED_SPREAD_MM`]) a rotation is not
 //! defined and the paper's frame is used.
-//! [`crate::FillMethod::PcaAligned`] runs it; the per-gap choice ([`crate::auto`]) uses it as
-//! its PCA candidate.
+//! [`crate::FillMethod::PcaAligned`] runs it; the per-gap choice ([`crate::auto`]) has it
+//! among its candidates, beside the paper's frame.
 //!
 //! # Meeting the borders (locap's, not the paper's)
 //! The published method does not use the samples either side of a gap, so its fill jumps
@@ -81,7 +81,7 @@
 //! time `t` from its border, so a short gap is corrected throughout and the middle of a long
 //! one keeps the reconstruction (an error a second away says little about this frame). A
 //! gap with one border carries that border's error, faded. Off by default; the per-gap
-//! choice ([`crate::auto`]) turns it on for its PCA candidate.
+//! choice ([`crate::auto`]) turns it on for its PCA candidates.
 //!
 //! # Residuals of the nearest poses (locap's, not the paper's)
 //! A linear model of the posture misses what is not linear in it: a thigh marker on muscle
@@ -94,7 +94,7 @@
 //! the inverse square of their distance: nearest-neighbour regression of what PCA leaves
 //! (the [`crate::pose_match`] idea on PCA's residual instead of the marker, which varies far
 //! less between neighbouring poses). In the moving frame, so a heading does not matter. Off
-//! by default; the per-gap choice ([`crate::auto`]) turns it on for its PCA candidate.
+//! by default; the per-gap choice ([`crate::auto`]) turns it on for its PCA candidates.
 //!
 //! # Left out
 //! Strategy R1 (all gaps reconstructed at once with the smallest distance as weight) and any
