@@ -62,6 +62,11 @@
 //! take added to it, [`AutoConfig::take_variance_share`]); the trials measure exactly the local
 //! version that fills the real gap.
 //!
+//! The PCA candidates, the costliest, fill an interior gap's windows elsewhere in time from
+//! one sub-take and one model ([`AutoConfig::shared_pca_fit`]): each window hides what the gap
+//! misses, so all of them share their predictors. The gap itself keeps a model of its own,
+//! fitted on frames that include the windows', which lie nearest to it in time.
+//!
 //! # Edge gaps
 //! A gap touching the take's start or end has one border. Its trials are cut the same way
 //! (the sub-take starts or ends at the trial window), and only the frames EDM fills under its
@@ -367,6 +372,14 @@ pub struct AutoConfig {
     /// (a treadmill, a lift at a table) turning every frame onto the mean shape only adds the
     /// alignment's noise; where it turns, the aligned frame wins; the trials tell which.
     pub paper_pca: bool,
+    /// Whether the PCA candidates fill a gap's trial windows elsewhere in time from one model:
+    /// one sub-take holds the windows (each hiding what the gap misses) and the context
+    /// sampled around the gap, and one reconstruction fills them all, since they miss the same
+    /// markers and so share their predictors. Off: each window gets its own sub-take, centred
+    /// on it, and its own model, at the cost of two eigen-decompositions per window and PCA
+    /// frame. The gap itself keeps its own model either way: the windows lie nearest to it in
+    /// time, and a model that left their frames out filled it worse.
+    pub shared_pca_fit: bool,
 }
 
 impl AutoConfig {
@@ -417,6 +430,7 @@ impl Default for AutoConfig {
             distance_min_s: 0.1,
             pose_match: false,
             paper_pca: true,
+            shared_pca_fit: true,
         }
     }
 }
@@ -597,6 +611,34 @@ impl<'a> Context<'a> {
     }
 }
 
+/// One trial gap: `target` hidden over `range` together with the `hidden` samples, filled on
+/// the sub-takes of `target` and its `local` neighbours.
+struct Trial<'a> {
+    target: usize,
+    local: &'a [usize],
+    range: Range<usize>,
+    hidden: &'a dyn Fn(usize, usize) -> bool,
+}
+
+/// The PCA candidates' fills of a gap's trial windows, from one sub-take
+/// ([`Context::shared_pca`]).
+struct SharedPca {
+    /// `frames[k]` is the take's frame at the sub-take's frame `k`.
+    frames: Vec<usize>,
+    /// Each PCA candidate's fill of the sub-take (its marker 0).
+    fills: Vec<(FillMethod, Filled)>,
+}
+
+impl SharedPca {
+    /// `method`'s fill of the take's frames `range` (a window, whose frames are consecutive in
+    /// the sub-take); None where it has none.
+    fn fill(&self, method: FillMethod, range: Range<usize>) -> Option<Vec<Option<Vec3>>> {
+        let (_, filled) = self.fills.iter().find(|(m, _)| *m == method)?;
+        let first = self.frames.binary_search(&range.start).ok()?;
+        Some((first..first + range.len()).map(|k| filled.computed(k, 0)).collect())
+    }
+}
+
 /// A sub-take and the take's frames it holds.
 struct Window {
     take: Take,
@@ -659,15 +701,20 @@ impl Context<'_> {
         // Error vectors per candidate over the trials' hidden samples.
         let mut errors: Vec<Vec<Vec3>> = vec![Vec::new(); candidates.len()];
         let mut bounds: Vec<usize> = vec![0];
+        let starts = self.trial_starts(marker, gap, edge);
+        let shared = self.shared_pca(candidates, marker, gap, edge, &starts, &wide);
         let mut score = |target: usize, local: &[usize], range: Range<usize>, hidden: &dyn Fn(usize, usize) -> bool| {
             // The neighbour trials count for less ([`AutoConfig::neighbour_weight`]).
             let w = if target == marker { 1.0 } else { self.config.neighbour_weight };
-            for (all, new) in errors.iter_mut().zip(self.trial_errors(candidates, edge, target, local, range, hidden)) {
+            // A window elsewhere in time has the shared PCA fills; a neighbour trial, whose
+            // target is another marker, does not.
+            let shared = if target == marker { shared.as_ref() } else { None };
+            let new = self.trial_errors(candidates, edge, &Trial { target, local, range, hidden }, shared);
+            for (all, new) in errors.iter_mut().zip(new) {
                 all.extend(new.into_iter().map(|e| e * w));
             }
             bounds.push(errors[0].len());
         };
-        let starts = self.trial_starts(marker, gap, edge);
         for &start in &starts {
             let offset = start as isize - gap.start as isize;
             let hidden = |f: usize, j: usize| {
@@ -731,7 +778,7 @@ impl Context<'_> {
         let weight = |c: FillMethod| -> f64 { chosen.iter().position(|x| *x == c).map_or(0.0, |k| weights[k]) };
         let range = gap.start..gap.end();
         let none = |_: usize, _: usize| false;
-        let windows = self.windows(range.clone(), edge, &local, &wide, &none);
+        let windows = self.windows(range.clone(), edge, &local, &wide, &none, self.needs_wide(candidates, None));
         let run = |c: FillMethod| self.candidate(c, &windows);
         let fills: Vec<Vec<Option<Vec3>>> = match &in_turn {
             Some(partners) => vec![self.cluster_fill(marker, gap, partners)],
@@ -796,22 +843,29 @@ impl Context<'_> {
         (choice, samples)
     }
 
-    /// One trial: `target` hidden over `range` together with the `hidden` samples, filled on
-    /// the sub-takes of `target` and its `local` neighbours by every candidate; each
-    /// candidate's error vectors over the hidden samples of `target` that the reference
-    /// ([`reference_of`]) fills. A sample a candidate leaves missing counts with the
-    /// reference's error there, the fill it would fall back to.
+    /// One `trial` filled on the sub-takes of its target and its neighbours by every candidate
+    /// (the PCA candidates' fills taken from `shared` where given); each candidate's error
+    /// vectors over the hidden samples of the target that the reference ([`reference_of`])
+    /// fills. A sample a candidate leaves missing counts with the reference's error there, the
+    /// fill it would fall back to.
     fn trial_errors(
         &self,
         candidates: &[FillMethod],
         edge: Edge,
-        target: usize,
-        local: &[usize],
-        range: Range<usize>,
-        hidden: &dyn Fn(usize, usize) -> bool,
+        trial: &Trial,
+        shared: Option<&SharedPca>,
     ) -> Vec<Vec<Vec3>> {
-        let windows = self.windows(range.clone(), edge, local, &self.pca_markers(target), hidden);
-        let fills: Vec<Vec<Option<Vec3>>> = candidates.iter().map(|c| self.candidate(*c, &windows)).collect();
+        let &Trial { target, local, ref range, hidden } = trial;
+        let range = range.clone();
+        let need_wide = self.needs_wide(candidates, shared);
+        let windows = self.windows(range.clone(), edge, local, &self.pca_markers(target), hidden, need_wide);
+        let fills: Vec<Vec<Option<Vec3>>> = candidates
+            .iter()
+            .map(|c| match shared.and_then(|s| s.fill(*c, range.clone())) {
+                Some(fill) => fill,
+                None => self.candidate(*c, &windows),
+            })
+            .collect();
         let reference = reference_of(edge);
         let reference = match candidates.iter().position(|c| *c == reference) {
             Some(r) => fills[r].clone(),
@@ -1082,6 +1136,7 @@ impl Context<'_> {
         local: &[usize],
         wide: &[usize],
         hidden: &dyn Fn(usize, usize) -> bool,
+        need_wide: bool,
     ) -> Windows {
         let frames = self.take.frame_count();
         // At an edge the sub-take ends where the take does, relative to `range`, so a trial has
@@ -1105,14 +1160,91 @@ impl Context<'_> {
         wide_frames.extend(borders.into_iter().flatten().filter(|f| around.contains(f)));
         wide_frames.extend(range.clone());
         wide_frames.sort_unstable();
+        let hides = |f: usize, j: usize| range.contains(&f) && hidden(f, j);
         Windows {
-            local: self.window(local_frames, local, &range, hidden),
-            wide: self.window(wide_frames, wide, &range, hidden),
+            local: self.window(local_frames, local, &hides),
+            wide: if need_wide { self.window(wide_frames, wide, &hides) } else { None },
             edm: std::cell::OnceCell::new(),
             ranked: std::cell::OnceCell::new(),
             edge,
             range,
         }
+    }
+
+    /// The PCA candidate `method`'s fill of marker 0 of `take` within frames `only`, both
+    /// frames meeting the gaps' borders and corrected by the nearest poses' residuals.
+    fn pca_fill(&self, method: FillMethod, take: &Take, only: Range<usize>) -> Filled {
+        let paper = if method == FillMethod::PcaAligned {
+            baseline::pca::PcaConfig::aligned()
+        } else {
+            baseline::pca::PcaConfig::default()
+        };
+        let fade_s = self.config.pca_border_fade_s;
+        let config = baseline::pca::PcaConfig {
+            border_fade_s: (fade_s > 0.0).then_some(fade_s),
+            residual_neighbours: self.config.pca_residual_neighbours,
+            ..paper
+        };
+        baseline::pca::fill_marker(take, 0, only, &config)
+    }
+
+    /// Whether a fill by `candidates` needs the wide sub-take: a candidate that learns from it
+    /// and is not among the `shared` fills.
+    fn needs_wide(&self, candidates: &[FillMethod], shared: Option<&SharedPca>) -> bool {
+        candidates.iter().any(|c| {
+            matches!(c, FillMethod::Pca | FillMethod::PcaAligned | FillMethod::PoseMatch)
+                && !shared.is_some_and(|s| s.fills.iter().any(|(m, _)| m == c))
+        })
+    }
+
+    /// The PCA candidates' fills of the trial windows at `starts` of an interior `gap` of
+    /// `marker`, from one sub-take of the `wide` markers ([`AutoConfig::shared_pca_fit`]): the
+    /// gap's context sampled as for the gap alone (less the frames where `marker` is missing:
+    /// no model learns from them, and each would be one more gap to fill), then every window
+    /// and its borders, each window hiding `marker` and whatever the gap misses at the same
+    /// offset. The windows miss the same markers, so they share their predictors, and one
+    /// model (one reconstruction per PCA frame) fills them all. None without windows, at the
+    /// take's edges (their windows end where the take does) or without a PCA candidate.
+    fn shared_pca(
+        &self,
+        candidates: &[FillMethod],
+        marker: usize,
+        gap: Gap,
+        edge: Edge,
+        starts: &[usize],
+        wide: &[usize],
+    ) -> Option<SharedPca> {
+        let methods: Vec<FillMethod> =
+            candidates.iter().copied().filter(|c| matches!(c, FillMethod::Pca | FillMethod::PcaAligned)).collect();
+        if !self.config.shared_pca_fit || edge != Edge::Inside || methods.is_empty() || starts.is_empty() {
+            return None;
+        }
+        let take = self.take;
+        let frames = take.frame_count();
+        let ranges: Vec<Range<usize>> = starts.iter().map(|s| *s..*s + gap.len).collect();
+        let in_ranges = |f: usize| (gap.start..gap.end()).contains(&f) || ranges.iter().any(|r| r.contains(&f));
+        // The context as [`Context::windows`] samples it for the gap alone.
+        let context = self.pca_context.max(gap.len);
+        let around = gap.start.saturating_sub(context)..(gap.end() + context).min(frames);
+        let others = around.len() - gap.len;
+        let stride = others.div_ceil(self.config.pca_fit_frames.max(1)).max(1);
+        let mut chosen: Vec<usize> =
+            around.filter(|f| !in_ranges(*f)).step_by(stride).filter(|f| take.is_valid(*f, marker)).collect();
+        for r in &ranges {
+            chosen.extend(r.start.checked_sub(1));
+            chosen.extend((r.end < frames).then_some(r.end));
+            chosen.extend(r.clone());
+        }
+        chosen.sort_unstable();
+        chosen.dedup();
+        let hidden = |f: usize, j: usize| match ranges.iter().find(|r| r.contains(&f)) {
+            Some(r) => j == marker || !take.is_valid(f - r.start + gap.start, j),
+            None => false,
+        };
+        let window = self.window(chosen, wide, &hidden)?;
+        let only = 0..window.frames.len();
+        let fills = methods.into_iter().map(|m| (m, self.pca_fill(m, &window.take, only.clone()))).collect();
+        Some(SharedPca { frames: window.frames, fills })
     }
 
     /// Candidate `method`'s fill of the windows' marker over their frames `range`.
@@ -1135,20 +1267,7 @@ impl Context<'_> {
         };
         let filled = match method {
             FillMethod::Edm => edm().clone(),
-            FillMethod::Pca | FillMethod::PcaAligned => {
-                let paper = if method == FillMethod::PcaAligned {
-                    baseline::pca::PcaConfig::aligned()
-                } else {
-                    baseline::pca::PcaConfig::default()
-                };
-                let fade_s = config.pca_border_fade_s;
-                let config = baseline::pca::PcaConfig {
-                    border_fade_s: (fade_s > 0.0).then_some(fade_s),
-                    residual_neighbours: config.pca_residual_neighbours,
-                    ..paper
-                };
-                baseline::pca::fill_marker(&window.take, 0, first..first + range.len(), &config)
-            }
+            FillMethod::Pca | FillMethod::PcaAligned => self.pca_fill(method, &window.take, first..first + range.len()),
             FillMethod::Rigid => {
                 baseline::rigid::fill_across_ranked(&window.take, ranked(), baseline::rigid::Across::Linear)
             }
@@ -1228,21 +1347,14 @@ impl Context<'_> {
     }
 
     /// The sub-take of `markers` (the gap's marker first) at `frames` (increasing), with
-    /// `hidden` samples of frames in `range` removed.
-    fn window(
-        &self,
-        frames: Vec<usize>,
-        markers: &[usize],
-        range: &Range<usize>,
-        hidden: &dyn Fn(usize, usize) -> bool,
-    ) -> Option<Window> {
+    /// `hidden(frame, marker)` samples removed.
+    fn window(&self, frames: Vec<usize>, markers: &[usize], hidden: &dyn Fn(usize, usize) -> bool) -> Option<Window> {
         let take = self.take;
         let names = markers.iter().map(|j| take.markers()[*j].clone()).collect();
         let mut samples = Vec::with_capacity(frames.len() * markers.len());
         for f in &frames {
-            let hides = range.contains(f);
             for j in markers {
-                samples.push(if hides && hidden(*f, *j) { None } else { take.position_mm(*f, *j) });
+                samples.push(if hidden(*f, *j) { None } else { take.position_mm(*f, *j) });
             }
         }
         let sub = Take::from_samples(names, &samples, take.frame_rate_hz()).ok()?;
@@ -1424,7 +1536,7 @@ mod tests {
         let first = |share: f64| {
             let config = AutoConfig { take_variance_share: share, ..AutoConfig::default() };
             let cx = Context::new(&take, &config);
-            let window = cx.window((0..120).collect(), &[0, 1, 2], &(0..0), &|_, _| false).unwrap();
+            let window = cx.window((0..120).collect(), &[0, 1, 2], &|_, _| false).unwrap();
             cx.window_ranking(&window, Edge::Inside)[0][0].0
         };
         // Window indices: 1 is B, 2 is C.
@@ -1476,6 +1588,55 @@ mod tests {
         wrong.set_position_mm(120, glitched, Some(away)).unwrap();
         let cx = Context { take: &wrong, ..Context::new(&holed, &config) };
         assert!(cx.is_plausible(0, 120, &at(120)));
+    }
+
+    /// A gap's trial windows elsewhere in time share one PCA model: every window is filled
+    /// from it (each hiding the neighbour the gap misses for 20 of its frames) as closely as
+    /// from a model of its own.
+    #[test]
+    fn a_gap_and_its_trial_windows_share_one_pca_model() {
+        // Six markers of a turning cluster, each wobbling a few millimetres on its own.
+        let wobble = |f: usize, k: usize| {
+            let t = f as f64 * 0.05 + k as f64;
+            [3.0 * t.sin(), 2.0 * (1.3 * t).cos(), 2.5 * (0.7 * t).sin()]
+        };
+        let truth = locap_testkit::rigid_cluster(900, 6, |i| format!("M{i}"), wobble);
+        let mut holed = truth.clone();
+        hide(&mut holed, 0, 400..460);
+        hide(&mut holed, 1, 420..440);
+        let config = AutoConfig::default();
+        let cx = Context::new(&holed, &config);
+        let gap = Gap { start: 400, len: 60 };
+        let starts = cx.trial_starts(0, gap, Edge::Inside);
+        assert!(starts.len() >= config.trials, "{starts:?}");
+        let wide = cx.pca_markers(0);
+        let methods = [FillMethod::PcaAligned, FillMethod::Pca];
+        let shared = cx.shared_pca(&methods, 0, gap, Edge::Inside, &starts, &wide).expect("an interior gap shares");
+        let rmse = |fill: &[Option<Vec3>], range: Range<usize>| -> f64 {
+            let squares: Vec<f64> = range
+                .zip(fill)
+                .map(|(f, p)| (p.expect("every frame filled") - truth.position_mm(f, 0).unwrap()).norm_squared())
+                .collect();
+            (squares.iter().sum::<f64>() / squares.len() as f64).sqrt()
+        };
+        let local = cx.local_markers(0, gap.start..gap.end(), &|f, j| holed.is_valid(f, j));
+        for method in methods {
+            assert!(shared.fill(method, gap.start..gap.end()).is_none(), "the gap keeps a model of its own");
+            for &s in &starts {
+                let range = s..s + gap.len;
+                let together = rmse(&shared.fill(method, range.clone()).unwrap(), range.clone());
+                // The window's own model, as without the shared fit.
+                let hidden = |f: usize, j: usize| j == 0 || !holed.is_valid(f - s + gap.start, j);
+                let windows = cx.windows(range.clone(), Edge::Inside, &local, &wide, &hidden, true);
+                let alone = rmse(&cx.candidate(method, &windows), range.clone());
+                assert!(together < alone + 0.5 && together < 5.0, "{}: {together} vs {alone} at {s}", method.name());
+            }
+        }
+        // Not at the take's edges, without windows, nor when turned off.
+        assert!(cx.shared_pca(&methods, 0, gap, Edge::Start, &starts, &wide).is_none());
+        assert!(cx.shared_pca(&methods, 0, gap, Edge::Inside, &[], &wide).is_none());
+        let off = AutoConfig { shared_pca_fit: false, ..config };
+        assert!(Context::new(&holed, &off).shared_pca(&methods, 0, gap, Edge::Inside, &starts, &wide).is_none());
     }
 
     #[test]

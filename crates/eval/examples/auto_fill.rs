@@ -8,7 +8,7 @@
 //!     [--seed 0] [--per-length 5] [--blend 3] [--trials 3] [--context 2] [--markers 10]
 //!     [--pca-markers 41] [--pca-context 30] [--pca-fit 500] [--pca-fade 0.5] [--pca-residuals 8] [--interpolate 100] [--least-squares]
 //!     [--neighbour-trials 2] [--neighbour-weight 0.5] [--score pooled|mean|median]
-//!     [--rigid-cluster 1.0] [--apart 4] [--loose 5] [--no-distance] [--pose-match|--no-pose-match] [--no-paper-pca] [--trial-time 0.5]
+//!     [--rigid-cluster 1.0] [--apart 4] [--loose 5] [--no-distance] [--pose-match|--no-pose-match] [--no-paper-pca] [--no-shared-pca] [--trial-time 0.5]
 //!     [--take-variance 10]
 //! ```
 //!
@@ -68,6 +68,9 @@ fn main() {
     }
     if args.iter().any(|a| a == "--no-paper-pca") {
         config.paper_pca = false;
+    }
+    if args.iter().any(|a| a == "--no-shared-pca") {
+        config.shared_pca_fit = false;
     }
     if args.iter().any(|a| a == "--least-squares") {
         config.weighting = auto::Weighting::LeastSquares;
