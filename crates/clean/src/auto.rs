@@ -62,10 +62,11 @@
 //! take added to it, [`AutoConfig::take_variance_share`]); the trials measure exactly the local
 //! version that fills the real gap.
 //!
-//! The PCA candidates, the costliest, fill an interior gap's windows elsewhere in time from
-//! one sub-take and one model ([`AutoConfig::shared_pca_fit`]): each window hides what the gap
-//! misses, so all of them share their predictors. The gap itself keeps a model of its own,
-//! fitted on frames that include the windows', which lie nearest to it in time.
+//! The PCA candidates, the costliest, fill an interior gap's windows elsewhere in time on one
+//! sub-take ([`AutoConfig::shared_pca_fit`]): each window hides what the gap misses, so their
+//! frames share their predictors and one model fills them all. The gap itself keeps a
+//! sub-take of its own, whose even sample of the context takes in the windows' frames too
+//! (they lie nearest to it in time).
 //!
 //! # Edge gaps
 //! A gap touching the take's start or end has one border. Its trials are cut the same way
@@ -215,6 +216,12 @@ pub const CANDIDATES: [FillMethod; 9] = [
     FillMethod::PoseMatch,
     FillMethod::Pca,
 ];
+
+/// Whether candidate `method` learns from the wide sub-take (PCA's window) rather than the
+/// local one.
+fn learns_from_wide(method: FillMethod) -> bool {
+    matches!(method, FillMethod::Pca | FillMethod::PcaAligned | FillMethod::PoseMatch)
+}
 
 /// Markers besides one that fix a rigid body's pose: the partners of a rigid cluster.
 const CLUSTER_PARTNERS: usize = 3;
@@ -372,13 +379,13 @@ pub struct AutoConfig {
     /// (a treadmill, a lift at a table) turning every frame onto the mean shape only adds the
     /// alignment's noise; where it turns, the aligned frame wins; the trials tell which.
     pub paper_pca: bool,
-    /// Whether the PCA candidates fill a gap's trial windows elsewhere in time from one model:
-    /// one sub-take holds the windows (each hiding what the gap misses) and the context
-    /// sampled around the gap, and one reconstruction fills them all, since they miss the same
-    /// markers and so share their predictors. Off: each window gets its own sub-take, centred
-    /// on it, and its own model, at the cost of two eigen-decompositions per window and PCA
-    /// frame. The gap itself keeps its own model either way: the windows lie nearest to it in
-    /// time, and a model that left their frames out filled it worse.
+    /// Whether the PCA candidates fill a gap's trial windows elsewhere in time together: one
+    /// sub-take holds the windows (each hiding what the gap misses) and the context sampled
+    /// around the gap, and since the windows miss the same markers, each model (one per set
+    /// of predictors) fills all of them. Off: each window gets its own sub-take, centred on
+    /// it, and its own models, at the cost of two eigen-decompositions per window, set of
+    /// predictors and PCA frame. The gap itself keeps its own sub-take either way: the windows
+    /// lie nearest to it in time, and a model without their frames filled it worse.
     pub shared_pca_fit: bool,
 }
 
@@ -635,6 +642,11 @@ impl SharedPca {
     fn fill(&self, method: FillMethod, range: Range<usize>) -> Option<Vec<Option<Vec3>>> {
         let (_, filled) = self.fills.iter().find(|(m, _)| *m == method)?;
         let first = self.frames.binary_search(&range.start).ok()?;
+        // The range whole, or not at all.
+        let last = (first + range.len()).checked_sub(1)?;
+        if self.frames.get(last) != Some(&(range.end - 1)) {
+            return None;
+        }
         Some((first..first + range.len()).map(|k| filled.computed(k, 0)).collect())
     }
 }
@@ -778,7 +790,8 @@ impl Context<'_> {
         let weight = |c: FillMethod| -> f64 { chosen.iter().position(|x| *x == c).map_or(0.0, |k| weights[k]) };
         let range = gap.start..gap.end();
         let none = |_: usize, _: usize| false;
-        let windows = self.windows(range.clone(), edge, &local, &wide, &none, self.needs_wide(candidates, None));
+        let need_wide = candidates.iter().any(|c| learns_from_wide(*c));
+        let windows = self.windows(range.clone(), edge, &local, &wide, &none, need_wide);
         let run = |c: FillMethod| self.candidate(c, &windows);
         let fills: Vec<Vec<Option<Vec3>>> = match &in_turn {
             Some(partners) => vec![self.cluster_fill(marker, gap, partners)],
@@ -855,16 +868,18 @@ impl Context<'_> {
         trial: &Trial,
         shared: Option<&SharedPca>,
     ) -> Vec<Vec<Vec3>> {
-        let &Trial { target, local, ref range, hidden } = trial;
-        let range = range.clone();
-        let need_wide = self.needs_wide(candidates, shared);
-        let windows = self.windows(range.clone(), edge, local, &self.pca_markers(target), hidden, need_wide);
+        let (target, range) = (trial.target, trial.range.clone());
+        // The shared fills first: a candidate left without one (none shared, or none for this
+        // window) is filled on the trial's own sub-takes, the wide one built only if needed.
+        let shared: Vec<Option<Vec<Option<Vec3>>>> =
+            candidates.iter().map(|c| shared.and_then(|s| s.fill(*c, range.clone()))).collect();
+        let need_wide = candidates.iter().zip(&shared).any(|(c, fill)| learns_from_wide(*c) && fill.is_none());
+        let windows =
+            self.windows(range.clone(), edge, trial.local, &self.pca_markers(target), trial.hidden, need_wide);
         let fills: Vec<Vec<Option<Vec3>>> = candidates
             .iter()
-            .map(|c| match shared.and_then(|s| s.fill(*c, range.clone())) {
-                Some(fill) => fill,
-                None => self.candidate(*c, &windows),
-            })
+            .zip(shared)
+            .map(|(c, fill)| fill.unwrap_or_else(|| self.candidate(*c, &windows)))
             .collect();
         let reference = reference_of(edge);
         let reference = match candidates.iter().position(|c| *c == reference) {
@@ -1188,23 +1203,13 @@ impl Context<'_> {
         baseline::pca::fill_marker(take, 0, only, &config)
     }
 
-    /// Whether a fill by `candidates` needs the wide sub-take: a candidate that learns from it
-    /// and is not among the `shared` fills.
-    fn needs_wide(&self, candidates: &[FillMethod], shared: Option<&SharedPca>) -> bool {
-        candidates.iter().any(|c| {
-            matches!(c, FillMethod::Pca | FillMethod::PcaAligned | FillMethod::PoseMatch)
-                && !shared.is_some_and(|s| s.fills.iter().any(|(m, _)| m == c))
-        })
-    }
-
     /// The PCA candidates' fills of the trial windows at `starts` of an interior `gap` of
-    /// `marker`, from one sub-take of the `wide` markers ([`AutoConfig::shared_pca_fit`]): the
-    /// gap's context sampled as for the gap alone (less the frames where `marker` is missing:
-    /// no model learns from them, and each would be one more gap to fill), then every window
-    /// and its borders, each window hiding `marker` and whatever the gap misses at the same
-    /// offset. The windows miss the same markers, so they share their predictors, and one
-    /// model (one reconstruction per PCA frame) fills them all. None without windows, at the
-    /// take's edges (their windows end where the take does) or without a PCA candidate.
+    /// `marker`, on one sub-take ([`Context::shared_window`], [`AutoConfig::shared_pca_fit`]).
+    /// The windows miss the same markers, so the frames of all of them fall in the same
+    /// groups of predictors, and each group's model (two eigen-decompositions per PCA frame)
+    /// fills every window at once; a marker missing in one window only, or in the context,
+    /// adds a group. None without windows, at the take's edges (their windows end where the
+    /// take does) or without a PCA candidate.
     fn shared_pca(
         &self,
         candidates: &[FillMethod],
@@ -1219,11 +1224,23 @@ impl Context<'_> {
         if !self.config.shared_pca_fit || edge != Edge::Inside || methods.is_empty() || starts.is_empty() {
             return None;
         }
+        let window = self.shared_window(marker, gap, starts, wide)?;
+        let only = 0..window.frames.len();
+        let fills = methods.into_iter().map(|m| (m, self.pca_fill(m, &window.take, only.clone()))).collect();
+        Some(SharedPca { frames: window.frames, fills })
+    }
+
+    /// The sub-take of the `wide` markers that holds the trial windows at `starts` of an
+    /// interior `gap` of `marker`: the gap's context, sampled at the stride [`Context::windows`]
+    /// uses for the gap alone, from the frames outside the gap and the windows, less those
+    /// where `marker` is missing (no model learns from them, and each would be one more gap to
+    /// fill); then every window and its two borders, each window hiding `marker` and whatever
+    /// the gap misses at the same offset.
+    fn shared_window(&self, marker: usize, gap: Gap, starts: &[usize], wide: &[usize]) -> Option<Window> {
         let take = self.take;
         let frames = take.frame_count();
         let ranges: Vec<Range<usize>> = starts.iter().map(|s| *s..*s + gap.len).collect();
         let in_ranges = |f: usize| (gap.start..gap.end()).contains(&f) || ranges.iter().any(|r| r.contains(&f));
-        // The context as [`Context::windows`] samples it for the gap alone.
         let context = self.pca_context.max(gap.len);
         let around = gap.start.saturating_sub(context)..(gap.end() + context).min(frames);
         let others = around.len() - gap.len;
@@ -1238,20 +1255,18 @@ impl Context<'_> {
         chosen.sort_unstable();
         chosen.dedup();
         let hidden = |f: usize, j: usize| match ranges.iter().find(|r| r.contains(&f)) {
+            // `f` lies in `r`, so the offset frame lies in the gap.
             Some(r) => j == marker || !take.is_valid(f - r.start + gap.start, j),
             None => false,
         };
-        let window = self.window(chosen, wide, &hidden)?;
-        let only = 0..window.frames.len();
-        let fills = methods.into_iter().map(|m| (m, self.pca_fill(m, &window.take, only.clone()))).collect();
-        Some(SharedPca { frames: window.frames, fills })
+        self.window(chosen, wide, &hidden)
     }
 
     /// Candidate `method`'s fill of the windows' marker over their frames `range`.
     fn candidate(&self, method: FillMethod, windows: &Windows) -> Vec<Option<Vec3>> {
         let range = windows.range.clone();
         // PCA and pose matching learn from other frames: the wide window's.
-        let wide = matches!(method, FillMethod::Pca | FillMethod::PcaAligned | FillMethod::PoseMatch);
+        let wide = learns_from_wide(method);
         let window = if wide { &windows.wide } else { &windows.local };
         let Some(window) = window else { return vec![None; range.len()] };
         let Ok(first) = window.frames.binary_search(&range.start) else { return vec![None; range.len()] };
@@ -1631,6 +1646,37 @@ mod tests {
                 let alone = rmse(&cx.candidate(method, &windows), range.clone());
                 assert!(together < alone + 0.5 && together < 5.0, "{}: {together} vs {alone} at {s}", method.name());
             }
+        }
+        // The sub-take: every window whole with both borders, `marker` hidden over it and the
+        // neighbour exactly where the gap misses it, at the same offset; the context captured.
+        let window = cx.shared_window(0, gap, &starts, &wide).unwrap();
+        let at = |f: usize| window.frames.binary_search(&f).ok();
+        let neighbour = window.markers.iter().position(|j| *j == 1).expect("the neighbour is in the sub-take");
+        for &s in &starts {
+            assert!(at(s - 1).is_some() && at(s + gap.len).is_some(), "the borders of {s}");
+            for f in s - 1..=s + gap.len {
+                let k = at(f).expect("a window's frames are all there");
+                let inside = (s..s + gap.len).contains(&f);
+                assert_eq!(window.take.is_valid(k, 0), !inside, "frame {f}");
+                let missed = (s + 20..s + 40).contains(&f);
+                assert_eq!(window.take.is_valid(k, neighbour), !missed, "frame {f}");
+            }
+        }
+        let context: Vec<usize> = (0..window.frames.len())
+            .filter(|k| !starts.iter().any(|s| (s - 1..=s + gap.len).contains(&window.frames[*k])))
+            .collect();
+        assert!(context.len() > 100 && context.iter().all(|k| window.take.is_valid(*k, 0)));
+        assert!(window.frames.iter().all(|f| !(gap.start..gap.end()).contains(f)), "the gap has its own");
+        // `fill` scores the PCA candidates on the shared fills, and nothing else changes.
+        let scores = |config: &AutoConfig| {
+            let out = fill(&holed, config);
+            out.choices.into_iter().find(|c| c.marker == 0).expect("the gap is recorded").trial_rmse_mm
+        };
+        let (together, apart) = (scores(&config), scores(&AutoConfig { shared_pca_fit: false, ..config }));
+        let score = |all: &[(FillMethod, f64)], m: FillMethod| all.iter().find(|(c, _)| *c == m).map(|(_, e)| *e);
+        for m in CANDIDATES {
+            let same = score(&together, m) == score(&apart, m);
+            assert_eq!(same, !matches!(m, FillMethod::Pca | FillMethod::PcaAligned), "{}", m.name());
         }
         // Not at the take's edges, without windows, nor when turned off.
         assert!(cx.shared_pca(&methods, 0, gap, Edge::Start, &starts, &wide).is_none());

@@ -21,8 +21,8 @@ fn read(relative: &str) -> Option<Take> {
 /// On CMU 135_02 (another subject than most of [`AutoConfig`]'s constants were chosen on) and
 /// HDM05 (another lab), auto's RMSE over the hidden samples at the protocol's seed 0 is at
 /// most the 0.8 times the best baseline's (EDM, the paper's PCA, rigid, spline),
-/// single and multi inputs (measured 0.43 / 0.31 and 0.47 / 0.58; at seed 1 0.74 / 0.67 and
-/// 0.42 / 0.58, docs/benchmarks.md). Every gap is recorded, with the samples it filled.
+/// single and multi inputs (measured 0.45 / 0.31 and 0.47 / 0.61 on 2026-12-07;
+/// docs/benchmarks.md). Every gap is recorded, with the samples it filled.
 #[test]
 fn auto_beats_the_best_baseline_by_a_fifth_on_held_out_takes() {
     let Some(cmu) = read("cmu-c3d/135_02.c3d") else { return };
