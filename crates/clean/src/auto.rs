@@ -1166,8 +1166,7 @@ impl Context<'_> {
         // PCA treats frames as independent samples: the gap's frames and an even sample of
         // the rest of its window are all its covariance needs.
         let around = span(self.pca_context);
-        let others = around.len() - range.len();
-        let stride = others.div_ceil(self.config.pca_fit_frames.max(1)).max(1);
+        let stride = self.pca_stride(around.len() - range.len());
         let mut wide_frames: Vec<usize> = around.clone().filter(|f| !range.contains(f)).step_by(stride).collect();
         // The borders too, where they exist, for the PCA candidate to meet them.
         let borders = [range.start.checked_sub(1), Some(range.end)];
@@ -1184,6 +1183,11 @@ impl Context<'_> {
             edge,
             range,
         }
+    }
+
+    /// The stride that samples about [`AutoConfig::pca_fit_frames`] of `others` context frames.
+    fn pca_stride(&self, others: usize) -> usize {
+        others.div_ceil(self.config.pca_fit_frames.max(1)).max(1)
     }
 
     /// The PCA candidate `method`'s fill of marker 0 of `take` within frames `only`, both
@@ -1243,8 +1247,7 @@ impl Context<'_> {
         let in_ranges = |f: usize| (gap.start..gap.end()).contains(&f) || ranges.iter().any(|r| r.contains(&f));
         let context = self.pca_context.max(gap.len);
         let around = gap.start.saturating_sub(context)..(gap.end() + context).min(frames);
-        let others = around.len() - gap.len;
-        let stride = others.div_ceil(self.config.pca_fit_frames.max(1)).max(1);
+        let stride = self.pca_stride(around.len() - gap.len);
         let mut chosen: Vec<usize> =
             around.filter(|f| !in_ranges(*f)).step_by(stride).filter(|f| take.is_valid(*f, marker)).collect();
         for r in &ranges {
