@@ -17,7 +17,10 @@
 //!    with the same neighbours missing. A window qualifies only where `i` and its borders
 //!    are captured and each of `i`'s [`CHECKED_NEIGHBOURS`] best neighbours that is captured
 //!    throughout the real gap is captured throughout the window as well (the trial must not
-//!    see a poorer neighbourhood than the real gap, nor, by the hiding rule, a richer one);
+//!    see a poorer neighbourhood than the real gap, nor, by the hiding rule, a richer one).
+//!    Where no window of the gap's length qualifies (a short take, a marker seen briefly), an
+//!    interior gap is tried on windows of half its length, else a quarter, which stand for its
+//!    middle and hide what is missing there ([`AutoConfig::shorter_trials`]);
 //!    and [`AutoConfig::neighbour_trials`] trials at the real gap's *own* frames: each of
 //!    `i`'s best neighbours that is captured throughout the gap and its borders is hidden
 //!    there in its turn (with `i` and whatever else is missing there) and filled. They see the
@@ -97,6 +100,12 @@
 //!   scores the candidates on a few samples, and the interpolations and the rigid fills are
 //!   within a millimetre of each other there, so three such trials choose by noise. The
 //!   windows are short, so the cost is small.
+//! - Shorter windows only where none of the gap's length exists: a shorter window favours
+//!   the interpolations, whose error grows fastest with the gap's length, so beside windows
+//!   of the full length (topping up a gap that found one or two) they misled, on short takes
+//!   most; alone they still test the marker's own fills (which neighbours carry it), where
+//!   the trials at the gap's own frames test its neighbours' fills. Measured on other labs'
+//!   takes and subjects (docs/benchmarks.md, "Shorter trial windows").
 //! - Two neighbour trials: they cost as much as two more windows, and on the short take of
 //!   the tuning set they changed the choice where more windows could not; four changed little.
 //!   Their RMSEs count at a quarter ([`AutoConfig::neighbour_weight`]): they see a poorer
@@ -238,6 +247,9 @@ pub const PLAUSIBILITY_NEIGHBOURS: usize = 3;
 /// a foot metres away), not a judge of accuracy: a pose the take shows nowhere else stays
 /// well inside it.
 pub const PLAUSIBLE_MARGIN_MM: f64 = 50.0;
+
+/// Shortest trial window (frames) standing for part of a longer gap.
+const MIN_SHORTER_TRIAL: usize = 10;
 
 /// Most trial gaps elsewhere in time for one real gap ([`AutoConfig::trial_time_s`]).
 pub const MOST_TRIALS: usize = 12;
@@ -387,6 +399,10 @@ pub struct AutoConfig {
     /// predictors and PCA frame. The gap itself keeps its own sub-take either way: the windows
     /// lie nearest to it in time, and a model without their frames filled it worse.
     pub shared_pca_fit: bool,
+    /// Whether an interior gap with no trial window of its length is tried on shorter
+    /// windows of the marker itself, standing for the middle half (or quarter) of the gap,
+    /// before the trials at its own frames alone decide.
+    pub shorter_trials: bool,
 }
 
 impl AutoConfig {
@@ -438,6 +454,7 @@ impl Default for AutoConfig {
             pose_match: false,
             paper_pca: true,
             shared_pca_fit: true,
+            shorter_trials: true,
         }
     }
 }
@@ -713,7 +730,9 @@ impl Context<'_> {
         // Error vectors per candidate over the trials' hidden samples.
         let mut errors: Vec<Vec<Vec3>> = vec![Vec::new(); candidates.len()];
         let mut bounds: Vec<usize> = vec![0];
-        let starts = self.trial_starts(marker, gap, edge);
+        let windows = self.trial_windows(marker, gap, edge);
+        // One PCA model fills the windows of the gap's own length; shorter ones fit their own.
+        let starts: Vec<usize> = windows.iter().filter(|(_, tried)| *tried == gap).map(|(s, _)| *s).collect();
         let shared = self.shared_pca(candidates, marker, gap, edge, &starts, &wide);
         let mut score = |target: usize, local: &[usize], range: Range<usize>, hidden: &dyn Fn(usize, usize) -> bool| {
             // The neighbour trials count for less ([`AutoConfig::neighbour_weight`]).
@@ -727,13 +746,13 @@ impl Context<'_> {
             }
             bounds.push(errors[0].len());
         };
-        for &start in &starts {
-            let offset = start as isize - gap.start as isize;
+        for &(start, tried) in &windows {
+            let offset = start as isize - tried.start as isize;
             let hidden = |f: usize, j: usize| {
-                (start..start + gap.len).contains(&f)
+                (start..start + tried.len).contains(&f)
                     && (j == marker || !self.take.is_valid((f as isize - offset) as usize, j))
             };
-            score(marker, &local, start..start + gap.len, &hidden);
+            score(marker, &local, start..start + tried.len, &hidden);
         }
         // Trials at the gap's own frames, on neighbours: the motion of the real gap itself
         // (a pose the rest of the take never repeats defeats a method that learned from the
@@ -752,7 +771,7 @@ impl Context<'_> {
             .map(|(c, e)| (*c, trial_score(e, &bounds, self.config.score)))
             .collect();
         scores.sort_by(|a, b| a.1.total_cmp(&b.1));
-        let trials = if scores.is_empty() { 0 } else { starts.len() + neighbours.len() };
+        let trials = if scores.is_empty() { 0 } else { windows.len() + neighbours.len() };
         let ranking: Vec<FillMethod> = if scores.is_empty() {
             default_ranking(gap.len as f64 / self.take.frame_rate_hz(), edge != Edge::Inside).to_vec()
         } else {
@@ -1088,6 +1107,29 @@ impl Context<'_> {
     }
 
     /// Starts of the trial windows for `gap` of `marker`, nearest first.
+    /// The trial windows elsewhere in time of `marker`'s `gap`: each window's start and the
+    /// part of the gap it stands for (the frames whose missing markers it hides). The gap
+    /// itself, or where the take has no window of its length (a short take, a marker seen
+    /// briefly), its middle half or quarter ([`AutoConfig::shorter_trials`], interior gaps).
+    fn trial_windows(&self, marker: usize, gap: Gap, edge: Edge) -> Vec<(usize, Gap)> {
+        let whole = self.trial_starts(marker, gap, edge);
+        if !whole.is_empty() || !self.config.shorter_trials || edge != Edge::Inside {
+            return whole.into_iter().map(|s| (s, gap)).collect();
+        }
+        for parts in [2, 4] {
+            let len = gap.len / parts;
+            if len < MIN_SHORTER_TRIAL {
+                break;
+            }
+            let middle = Gap { start: gap.start + (gap.len - len) / 2, len };
+            let starts = self.trial_starts(marker, middle, edge);
+            if !starts.is_empty() {
+                return starts.into_iter().map(|s| (s, middle)).collect();
+            }
+        }
+        Vec::new()
+    }
+
     fn trial_starts(&self, marker: usize, gap: Gap, edge: Edge) -> Vec<usize> {
         let take = self.take;
         let frames = take.frame_count();
@@ -1879,6 +1921,31 @@ mod tests {
         for f in 10..60 {
             let (a, b) = (out.filled.take.position_mm(f, 0).unwrap(), truth.position_mm(f, 0).unwrap());
             assert!((a - b).norm() < 1e-6, "frame {f}: {a:?} vs {b:?}");
+        }
+    }
+
+    /// A gap whose length fits nowhere else in the take is tried on shorter windows of its
+    /// own marker, standing for the gap's middle, besides the trials at its own frames.
+    #[test]
+    fn a_gap_too_long_for_any_window_is_tried_on_shorter_ones() {
+        let truth = cluster(130, |i| format!("M{i}"));
+        let mut holed = truth.clone();
+        // 60 frames hidden, 40 captured before and 30 after: no window of 60 fits, 30 does.
+        hide(&mut holed, 0, 40..100);
+        let neighbour_trials = AutoConfig::default().neighbour_trials;
+        for shorter_trials in [false, true] {
+            let config = AutoConfig { shorter_trials, ..AutoConfig::default() };
+            let out = fill(&holed, &config);
+            let choice = out.choices.iter().find(|c| c.marker == 0).unwrap();
+            if shorter_trials {
+                assert!(choice.trials > neighbour_trials, "{choice:?}");
+            } else {
+                assert_eq!(choice.trials, neighbour_trials, "{choice:?}");
+            }
+            for f in 40..100 {
+                let (a, b) = (out.filled.take.position_mm(f, 0).unwrap(), truth.position_mm(f, 0).unwrap());
+                assert!((a - b).norm() < 1e-6, "frame {f}: {a:?} vs {b:?}");
+            }
         }
     }
 
