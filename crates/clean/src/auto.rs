@@ -19,8 +19,10 @@
 //!    throughout the real gap is captured throughout the window as well (the trial must not
 //!    see a poorer neighbourhood than the real gap, nor, by the hiding rule, a richer one).
 //!    Where no window of the gap's length qualifies (a short take, a marker seen briefly), an
-//!    interior gap is tried on windows of half its length, else a quarter, which stand for its
-//!    middle and hide what is missing there ([`AutoConfig::shorter_trials`]);
+//!    interior gap is tried on windows of half its length, else a quarter (at least
+//!    [`MIN_SHORTER_TRIAL`] frames), which stand for its middle and hide what is missing there,
+//!    and spline and linear interpolation are left out of its candidates
+//!    ([`AutoConfig::shorter_trials`]);
 //!    and [`AutoConfig::neighbour_trials`] trials at the real gap's *own* frames: each of
 //!    `i`'s best neighbours that is captured throughout the gap and its borders is hidden
 //!    there in its turn (with `i` and whatever else is missing there) and filled. They see the
@@ -65,7 +67,7 @@
 //! take added to it, [`AutoConfig::take_variance_share`]); the trials measure exactly the local
 //! version that fills the real gap.
 //!
-//! The PCA candidates, the costliest, fill an interior gap's windows elsewhere in time on one
+//! The PCA candidates, the costliest, fill an interior gap's windows of its length on one
 //! sub-take ([`AutoConfig::shared_pca_fit`]): each window hides what the gap misses, so their
 //! frames share their predictors and one model fills them all. The gap itself keeps a
 //! sub-take of its own, whose even sample of the context takes in the windows' frames too
@@ -100,12 +102,15 @@
 //!   scores the candidates on a few samples, and the interpolations and the rigid fills are
 //!   within a millimetre of each other there, so three such trials choose by noise. The
 //!   windows are short, so the cost is small.
-//! - Shorter windows only where none of the gap's length exists: a shorter window favours
+//! - Shorter windows only where none of the gap's length exists: a shorter window flatters
 //!   the interpolations, whose error grows fastest with the gap's length, so beside windows
 //!   of the full length (topping up a gap that found one or two) they misled, on short takes
-//!   most; alone they still test the marker's own fills (which neighbours carry it), where
-//!   the trials at the gap's own frames test its neighbours' fills. Measured on other labs'
-//!   takes and subjects (docs/benchmarks.md, "Shorter trial windows").
+//!   most, and where they decide, spline and linear are no candidates (with them, the real
+//!   occlusion statistics' gaps of 1-2 s lost 1.3 mm, without them 0.5, in a first
+//!   version); they test the marker's own fills
+//!   (which neighbours carry it), where the trials at the gap's own frames test its
+//!   neighbours'. Measured on other labs' takes and subjects (docs/benchmarks.md, "Shorter
+//!   trial windows").
 //! - Two neighbour trials: they cost as much as two more windows, and on the short take of
 //!   the tuning set they changed the choice where more windows could not; four changed little.
 //!   Their RMSEs count at a quarter ([`AutoConfig::neighbour_weight`]): they see a poorer
@@ -248,8 +253,10 @@ pub const PLAUSIBILITY_NEIGHBOURS: usize = 3;
 /// well inside it.
 pub const PLAUSIBLE_MARGIN_MM: f64 = 50.0;
 
-/// Shortest trial window (frames) standing for part of a longer gap.
-const MIN_SHORTER_TRIAL: usize = 10;
+/// Shortest trial window (frames) standing for part of a longer gap. In frames, not
+/// seconds: a trial scores the candidates on its samples, and fewer than this choose by
+/// noise (a gap of under 20 frames, 0.1-0.17 s at 120-200 Hz, gets no shorter windows).
+pub const MIN_SHORTER_TRIAL: usize = 10;
 
 /// Most trial gaps elsewhere in time for one real gap ([`AutoConfig::trial_time_s`]).
 pub const MOST_TRIALS: usize = 12;
@@ -400,8 +407,10 @@ pub struct AutoConfig {
     /// lie nearest to it in time, and a model without their frames filled it worse.
     pub shared_pca_fit: bool,
     /// Whether an interior gap with no trial window of its length is tried on shorter
-    /// windows of the marker itself, standing for the middle half (or quarter) of the gap,
-    /// before the trials at its own frames alone decide.
+    /// windows of the marker itself (half the gap's length, else a quarter, at least
+    /// [`MIN_SHORTER_TRIAL`] frames), standing for the gap's middle, rather than leaving the
+    /// choice to the trials at its own frames alone; the interpolations are no candidates
+    /// there (a shorter window flatters them).
     pub shorter_trials: bool,
 }
 
@@ -726,13 +735,21 @@ impl Context<'_> {
         } else {
             CANDIDATES[..3].to_vec()
         };
+        let elsewhere = self.trial_windows(marker, gap, edge);
+        // A shorter window flatters the interpolations, whose error grows fastest with the
+        // gap's length: scored on one, they are left out.
+        let shorter = elsewhere.iter().any(|(_, tried)| *tried != gap);
+        let candidates: Vec<FillMethod> = if shorter {
+            candidates.into_iter().filter(|c| !matches!(c, FillMethod::Spline | FillMethod::Linear)).collect()
+        } else {
+            candidates
+        };
         let candidates = candidates.as_slice();
         // Error vectors per candidate over the trials' hidden samples.
         let mut errors: Vec<Vec<Vec3>> = vec![Vec::new(); candidates.len()];
         let mut bounds: Vec<usize> = vec![0];
-        let windows = self.trial_windows(marker, gap, edge);
         // One PCA model fills the windows of the gap's own length; shorter ones fit their own.
-        let starts: Vec<usize> = windows.iter().filter(|(_, tried)| *tried == gap).map(|(s, _)| *s).collect();
+        let starts: Vec<usize> = elsewhere.iter().filter(|(_, tried)| *tried == gap).map(|(s, _)| *s).collect();
         let shared = self.shared_pca(candidates, marker, gap, edge, &starts, &wide);
         let mut score = |target: usize, local: &[usize], range: Range<usize>, hidden: &dyn Fn(usize, usize) -> bool| {
             // The neighbour trials count for less ([`AutoConfig::neighbour_weight`]).
@@ -746,12 +763,8 @@ impl Context<'_> {
             }
             bounds.push(errors[0].len());
         };
-        for &(start, tried) in &windows {
-            let offset = start as isize - tried.start as isize;
-            let hidden = |f: usize, j: usize| {
-                (start..start + tried.len).contains(&f)
-                    && (j == marker || !self.take.is_valid((f as isize - offset) as usize, j))
-            };
+        for &(start, tried) in &elsewhere {
+            let hidden = |f: usize, j: usize| self.trial_hides(marker, start, tried, f, j);
             score(marker, &local, start..start + tried.len, &hidden);
         }
         // Trials at the gap's own frames, on neighbours: the motion of the real gap itself
@@ -771,7 +784,7 @@ impl Context<'_> {
             .map(|(c, e)| (*c, trial_score(e, &bounds, self.config.score)))
             .collect();
         scores.sort_by(|a, b| a.1.total_cmp(&b.1));
-        let trials = if scores.is_empty() { 0 } else { windows.len() + neighbours.len() };
+        let trials = if scores.is_empty() { 0 } else { elsewhere.len() + neighbours.len() };
         let ranking: Vec<FillMethod> = if scores.is_empty() {
             default_ranking(gap.len as f64 / self.take.frame_rate_hz(), edge != Edge::Inside).to_vec()
         } else {
@@ -1106,13 +1119,13 @@ impl Context<'_> {
         (0..take.frame_count()).filter(|&f| take.is_valid(f, a) && take.is_valid(f, b)).take(frames).count() >= frames
     }
 
-    /// Starts of the trial windows for `gap` of `marker`, nearest first.
     /// The trial windows elsewhere in time of `marker`'s `gap`: each window's start and the
     /// part of the gap it stands for (the frames whose missing markers it hides). The gap
     /// itself, or where the take has no window of its length (a short take, a marker seen
-    /// briefly), its middle half or quarter ([`AutoConfig::shorter_trials`], interior gaps).
+    /// briefly), its middle half, else its middle quarter, of at least [`MIN_SHORTER_TRIAL`]
+    /// frames ([`AutoConfig::shorter_trials`], interior gaps).
     fn trial_windows(&self, marker: usize, gap: Gap, edge: Edge) -> Vec<(usize, Gap)> {
-        let whole = self.trial_starts(marker, gap, edge);
+        let whole = self.trial_starts(marker, gap, gap, edge);
         if !whole.is_empty() || !self.config.shorter_trials || edge != Edge::Inside {
             return whole.into_iter().map(|s| (s, gap)).collect();
         }
@@ -1122,7 +1135,7 @@ impl Context<'_> {
                 break;
             }
             let middle = Gap { start: gap.start + (gap.len - len) / 2, len };
-            let starts = self.trial_starts(marker, middle, edge);
+            let starts = self.trial_starts(marker, middle, gap, edge);
             if !starts.is_empty() {
                 return starts.into_iter().map(|s| (s, middle)).collect();
             }
@@ -1130,10 +1143,19 @@ impl Context<'_> {
         Vec::new()
     }
 
-    fn trial_starts(&self, marker: usize, gap: Gap, edge: Edge) -> Vec<usize> {
+    /// Whether the trial window at `start`, standing for `tried` (a gap of `marker` or part of
+    /// one), hides marker `j` at frame `f`: `marker` over the window, and every marker that is
+    /// missing at the corresponding frame of `tried`.
+    fn trial_hides(&self, marker: usize, start: usize, tried: Gap, f: usize, j: usize) -> bool {
+        (start..start + tried.len).contains(&f) && (j == marker || !self.take.is_valid(f - start + tried.start, j))
+    }
+
+    /// Starts of the trial windows of `tried.len` frames for `tried`, a part of (or the whole)
+    /// gap `real` of `marker`, nearest to `real` first.
+    fn trial_starts(&self, marker: usize, tried: Gap, real: Gap, edge: Edge) -> Vec<usize> {
         let take = self.take;
         let frames = take.frame_count();
-        let len = gap.len;
+        let len = tried.len;
         if self.config.trials == 0 || len + 2 > frames {
             return Vec::new();
         }
@@ -1144,7 +1166,7 @@ impl Context<'_> {
             .filter(|(_, v)| v.is_finite())
             .map(|(j, _)| *j)
             .take(CHECKED_NEIGHBOURS)
-            .filter(|j| self.captured_around(*j, gap, edge))
+            .filter(|j| self.captured_around(*j, tried, edge))
             .collect();
         let fits = |s: usize| -> bool {
             let r = span(s);
@@ -1154,28 +1176,27 @@ impl Context<'_> {
             r.clone().all(|f| take.is_valid(f, marker))
                 && checked.iter().all(|j| r.clone().all(|f| take.is_valid(f, *j)))
         };
-        // Windows as near as the gap itself allows (one frame apart, beyond its borders): on a
+        // Windows as near as the real gap allows (one frame apart, beyond its borders): on a
         // short take the farther ones do not exist, and the nearest motion is the likest.
+        // `away` frames lie between a window and the real gap's border frame, after it or
+        // before it.
         let step = len + 2;
-        let mut offsets: Vec<isize> = Vec::new();
+        let mut offsets: Vec<(usize, bool)> = Vec::new();
         for k in 1..=self.search.div_ceil(step).min(4000) {
-            let jitter = (splitmix(self.config.seed ^ ((marker as u64) << 40) ^ ((gap.start as u64) << 8) ^ k as u64)
-                % (len as u64 / 2 + 1)) as isize;
-            let d = (k * step) as isize + jitter;
-            offsets.push(d);
-            offsets.push(-d);
+            let jitter = splitmix(self.config.seed ^ ((marker as u64) << 40) ^ ((tried.start as u64) << 8) ^ k as u64)
+                % (len as u64 / 2 + 1);
+            let away = (k - 1) * step + jitter as usize;
+            offsets.push((away, true));
+            offsets.push((away, false));
         }
-        offsets.sort_by_key(|d| (d.unsigned_abs(), *d < 0));
+        offsets.sort_by_key(|(away, after)| (*away, !*after));
         let mut starts: Vec<usize> = Vec::new();
-        for d in offsets {
+        for (away, after) in offsets {
             if starts.len() >= wanted {
                 break;
             }
-            let s = gap.start as isize + d;
-            if s < 0 {
-                continue;
-            }
-            let s = s as usize;
+            let s = if after { Some(real.end() + 2 + away) } else { real.start.checked_sub(2 + len + away) };
+            let Some(s) = s else { continue };
             if fits(s) && starts.iter().all(|o| s + len + 2 <= *o || *o + len + 2 <= s) {
                 starts.push(s);
             }
@@ -1667,7 +1688,7 @@ mod tests {
         let config = AutoConfig::default();
         let cx = Context::new(&holed, &config);
         let gap = Gap { start: 400, len: 60 };
-        let starts = cx.trial_starts(0, gap, Edge::Inside);
+        let starts = cx.trial_starts(0, gap, gap, Edge::Inside);
         assert!(starts.len() >= config.trials, "{starts:?}");
         let wide = cx.pca_markers(0);
         let methods = [FillMethod::PcaAligned, FillMethod::Pca];
@@ -1925,28 +1946,45 @@ mod tests {
     }
 
     /// A gap whose length fits nowhere else in the take is tried on shorter windows of its
-    /// own marker, standing for the gap's middle, besides the trials at its own frames.
+    /// own marker, as near to it as they fit, standing for the gap's middle and hiding what
+    /// is missing there; the interpolations are left out of its candidates.
     #[test]
     fn a_gap_too_long_for_any_window_is_tried_on_shorter_ones() {
         let truth = cluster(130, |i| format!("M{i}"));
         let mut holed = truth.clone();
-        // 60 frames hidden, 40 captured before and 30 after: no window of 60 fits, 30 does.
+        // 60 frames hidden, 40 captured before and 30 after: no window of 60 fits, and one of
+        // 30 (with its borders) fits before the gap only.
         hide(&mut holed, 0, 40..100);
-        let neighbour_trials = AutoConfig::default().neighbour_trials;
-        for shorter_trials in [false, true] {
-            let config = AutoConfig { shorter_trials, ..AutoConfig::default() };
-            let out = fill(&holed, &config);
-            let choice = out.choices.iter().find(|c| c.marker == 0).unwrap();
-            if shorter_trials {
-                assert!(choice.trials > neighbour_trials, "{choice:?}");
-            } else {
-                assert_eq!(choice.trials, neighbour_trials, "{choice:?}");
-            }
-            for f in 40..100 {
-                let (a, b) = (out.filled.take.position_mm(f, 0).unwrap(), truth.position_mm(f, 0).unwrap());
-                assert!((a - b).norm() < 1e-6, "frame {f}: {a:?} vs {b:?}");
+        // Marker 1 is missing in the gap's middle part, 5 frames into it.
+        hide(&mut holed, 1, 60..65);
+        let gap = Gap { start: 40, len: 60 };
+        let middle = Gap { start: 55, len: 30 };
+        let config = AutoConfig::default();
+        let cx = Context::new(&holed, &config);
+        let windows = cx.trial_windows(0, gap, Edge::Inside);
+        assert!(!windows.is_empty());
+        for &(start, tried) in &windows {
+            assert_eq!(tried, middle);
+            // The window and its borders are captured, before the gap.
+            assert!(start >= 1 && start + 30 < 40, "{start}");
+            for f in 0..130 {
+                assert_eq!(cx.trial_hides(0, start, tried, f, 0), (start..start + 30).contains(&f), "frame {f}");
+                assert_eq!(cx.trial_hides(0, start, tried, f, 1), (start + 5..start + 10).contains(&f), "frame {f}");
+                assert!(!cx.trial_hides(0, start, tried, f, 2));
             }
         }
+        let out = fill(&holed, &config);
+        let choice = out.choices.iter().find(|c| c.marker == 0).unwrap();
+        assert_eq!(choice.trials, config.neighbour_trials + windows.len(), "{choice:?}");
+        let scored: Vec<FillMethod> = choice.trial_rmse_mm.iter().map(|(c, _)| *c).collect();
+        assert!(!scored.contains(&FillMethod::Spline) && !scored.contains(&FillMethod::Linear), "{scored:?}");
+        assert!(scored.contains(&FillMethod::Edm), "{scored:?}");
+
+        let off = AutoConfig { shorter_trials: false, ..AutoConfig::default() };
+        assert!(Context::new(&holed, &off).trial_windows(0, gap, Edge::Inside).is_empty());
+        let out = fill(&holed, &off);
+        let choice = out.choices.iter().find(|c| c.marker == 0).unwrap();
+        assert_eq!(choice.trials, off.neighbour_trials, "{choice:?}");
     }
 
     #[test]
