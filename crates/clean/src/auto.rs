@@ -1320,10 +1320,9 @@ impl Context<'_> {
         }
         chosen.sort_unstable();
         chosen.dedup();
-        let hidden = |f: usize, j: usize| match ranges.iter().find(|r| r.contains(&f)) {
-            // `f` lies in `r`, so the offset frame lies in the gap.
-            Some(r) => j == marker || !take.is_valid(f - r.start + gap.start, j),
-            None => false,
+        // Each window hides as a trial window of the gap does.
+        let hidden = |f: usize, j: usize| {
+            ranges.iter().find(|r| r.contains(&f)).is_some_and(|r| self.trial_hides(marker, r.start, gap, f, j))
         };
         self.window(chosen, wide, &hidden)
     }
