@@ -49,6 +49,22 @@
 //! [`AutoFilled::choices`] records, per gap, the blend, the trial count and every
 //! candidate's trial RMSE, so the clean stage can write which method filled which gap.
 //!
+//! # Second pass
+//! A gap with other markers missing at the same time is filled, and tried, without them:
+//! an arm's markers occluded together leave each other's fill a poorer neighbourhood than the
+//! body has. Once every gap has its first fill, each gap of at least
+//! [`AutoConfig::second_pass_min_s`] during which another labeled marker is missing is
+//! filled again on the take with every *other* marker's first fills in place (its own taken
+//! out): its candidates then carry it with neighbours that are all there, blended as the
+//! first pass chose (step 3 on the first trials' scores). With
+//! [`AutoConfig::second_pass_trials`] steps 1-2 run again too, on trials that hide the marker
+//! alone: a better choice, at the cost of a second pass as dear as the first. The
+//! neighbours' fills bring their own error, which trials on captured neighbours cannot see;
+//! on a long gap the fuller neighbourhood outweighs it, on a short one, which interpolation
+//! fills within a millimetre or two, it does not: hence the least length. Every refill reads
+//! the first pass's take, never another refill, so the result does not depend on the order
+//! ([`AutoConfig::second_pass`], [`GapChoice::second_pass`]).
+//!
 //! # Cost
 //! Candidates never refill the whole take. Each trial and the real gap are filled on
 //! *sub-takes*: for EDM, rigid, spline, linear and the distance fill, the gap's frames plus
@@ -412,6 +428,24 @@ pub struct AutoConfig {
     /// choice to the trials at its own frames alone; the interpolations are no candidates
     /// there (a shorter window flatters them).
     pub shorter_trials: bool,
+    /// Whether gaps of at least [`AutoConfig::second_pass_min_s`] during which another
+    /// labeled marker is missing too are filled a second time once every gap has its first
+    /// fill, with the other markers' first fills standing in for their missing samples
+    /// ([`fill`], "Second pass").
+    pub second_pass: bool,
+    /// Shortest gap (seconds) the second pass fills again. A short gap's interpolation is
+    /// within a millimetre or two, and the neighbours' first fills, off by several on long
+    /// gaps, would only pass their error on: refilled from 0.1 s, gaps of 1-30 frames at
+    /// 120 Hz came out twice as far off on the real occlusion statistics, and from 1 s on
+    /// the refill gains (docs/benchmarks.md, "A second pass for simultaneous gaps").
+    pub second_pass_min_s: f64,
+    /// Whether the second pass tries every candidate again, on the take with the neighbours'
+    /// first fills in place, rather than refilling each gap with the first pass's choice
+    /// (blend and weights). It chooses better (real occlusion statistics on CMU/HDM05: OMPE
+    /// 15.2 mm against 15.8, held out 5.5 against 6.1 and 3.9 against 4.4) but the second
+    /// pass then costs as much as the first: the 10-minute take took 12.9 s instead of 7-8 s
+    /// (docs/benchmarks.md, "A second pass for simultaneous gaps").
+    pub second_pass_trials: bool,
 }
 
 impl AutoConfig {
@@ -464,6 +498,9 @@ impl Default for AutoConfig {
             paper_pca: true,
             shared_pca_fit: true,
             shorter_trials: true,
+            second_pass: true,
+            second_pass_min_s: 1.0,
+            second_pass_trials: false,
         }
     }
 }
@@ -490,6 +527,11 @@ pub struct GapChoice {
     /// candidate that is plausible.
     #[serde(default)]
     pub implausible: usize,
+    /// Whether this is the second pass's fill ([`AutoConfig::second_pass`]): the gap
+    /// overlapped another marker's, and was filled again with that marker's first fill
+    /// standing in.
+    #[serde(default)]
+    pub second_pass: bool,
 }
 
 impl GapChoice {
@@ -559,21 +601,89 @@ pub fn fill(take: &Take, config: &AutoConfig) -> AutoFilled {
         .filter(|i| (0..frames).any(|f| take.is_valid(f, *i)))
         .flat_map(|i| gaps_of((0..frames).map(|f| take.is_valid(f, i))).into_iter().map(move |g| (i, g)))
         .collect();
-    let results: Vec<(GapChoice, Vec<(usize, Vec3)>)> = work.par_iter().map(|(i, g)| cx.fill_gap(*i, *g)).collect();
+    let results: Vec<GapFill> = work.par_iter().map(|(i, g)| cx.fill_gap(*i, *g, None)).collect();
     let mut out = Filled::unchanged(take);
     let mut choices = Vec::with_capacity(results.len());
-    for (mut choice, samples) in results {
-        choice.filled = 0;
-        for (f, p) in samples {
-            if out.take.set_position_mm(f, choice.marker, Some(p)).is_ok() {
-                out.filled[f * m + choice.marker] = true;
-                choice.filled += 1;
-            }
-        }
-        choices.push(choice);
+    for (choice, samples) in results {
+        choices.push(write_fill(&mut out, choice, samples));
+    }
+    if config.second_pass {
+        second_pass(&cx, &work, &mut out, &mut choices);
     }
     AutoFilled { filled: out, choices }
 }
+
+/// Writes one gap's `samples` into `out` and returns its `choice` with the gap's filled
+/// samples counted. A refill's sample replaces the first fill's; where a refill has none, the
+/// first fill's stays (a fill never leaves a hole the first pass had closed).
+fn write_fill(out: &mut Filled, mut choice: GapChoice, samples: Vec<(usize, Vec3)>) -> GapChoice {
+    let m = out.take.marker_count();
+    for (f, p) in samples {
+        if out.take.set_position_mm(f, choice.marker, Some(p)).is_ok() {
+            out.filled[f * m + choice.marker] = true;
+        }
+    }
+    choice.filled = choice.frames.clone().filter(|f| out.filled[f * m + choice.marker]).count();
+    choice
+}
+
+/// The second pass ([`AutoConfig::second_pass`]): every gap of `work` of at least
+/// [`AutoConfig::second_pass_min_s`] during which another labeled marker is missing too is
+/// filled again, on the take as the first pass left it with the gap's own marker's first fills
+/// taken out (each marker sees the others' first fills, never its own; so no refill depends on
+/// another, and the result does not depend on the order).
+///
+/// Why: the first pass fills each gap with the markers missing at the same time hidden in its
+/// trials and absent from its candidates' sub-takes, so a gap beside another (an arm's
+/// markers occluded together, a long gap crossing a neighbour's short one) is filled from a
+/// poorer neighbourhood than the body offers once the neighbour has its own fill. Over long
+/// gaps that loss outweighs the neighbour fill's error; over short ones it does not
+/// ([`AutoConfig::second_pass_min_s`]).
+fn second_pass(cx: &Context, work: &[(usize, Gap)], out: &mut Filled, choices: &mut [GapChoice]) {
+    let take = cx.take;
+    let m = take.marker_count();
+    let least = (cx.config.second_pass_min_s * take.frame_rate_hz()).round().max(1.0) as usize;
+    let labeled: Vec<usize> = (0..m).filter(|j| !take.markers()[*j].is_unlabeled()).collect();
+    let beside =
+        |i: usize, g: &Gap| (g.start..g.end()).any(|f| labeled.iter().any(|j| *j != i && !take.is_valid(f, *j)));
+    let selected: Vec<usize> =
+        (0..work.len()).filter(|k| work[*k].1.len >= least && beside(work[*k].0, &work[*k].1)).collect();
+    if selected.is_empty() {
+        return;
+    }
+    // Without trials of its own a refill keeps the first pass's choice.
+    let keep_choice = !cx.config.second_pass_trials;
+    let mut second = out.take.clone();
+    let mut redone: Vec<(usize, GapFill)> = Vec::with_capacity(selected.len());
+    let mut k = 0;
+    while k < selected.len() {
+        let i = work[selected[k]].0;
+        let mine: Vec<usize> = selected[k..].iter().copied().take_while(|x| work[*x].0 == i).collect();
+        k += mine.len();
+        // Marker `i` as the input has it: its first fills out, everyone else's in.
+        let own: Vec<(usize, Option<Vec3>)> =
+            (0..take.frame_count()).filter(|f| !take.is_valid(*f, i)).map(|f| (f, second.position_mm(f, i))).collect();
+        for (f, _) in &own {
+            let _ = second.set_position_mm(*f, i, None);
+        }
+        let refill = Context { take: &second, ..cx.clone() };
+        let filled: Vec<GapFill> = mine
+            .par_iter()
+            .map(|x| refill.fill_gap(work[*x].0, work[*x].1, keep_choice.then(|| &choices[*x])))
+            .collect();
+        redone.extend(mine.iter().copied().zip(filled));
+        for (f, p) in own {
+            let _ = second.set_position_mm(f, i, p);
+        }
+    }
+    for (x, (mut choice, samples)) in redone {
+        choice.second_pass = true;
+        choices[x] = write_fill(out, choice, samples);
+    }
+}
+
+/// One gap's fill: its choice and its samples `(frame, position)`.
+type GapFill = (GapChoice, Vec<(usize, Vec3)>);
 
 /// Which border a gap lacks.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -584,6 +694,7 @@ enum Edge {
 }
 
 /// What every gap's fill shares.
+#[derive(Clone)]
 struct Context<'a> {
     take: &'a Take,
     config: &'a AutoConfig,
@@ -702,8 +813,10 @@ struct Windows {
 }
 
 impl Context<'_> {
-    /// Fills one gap of `marker`: the choice and the samples `(frame, position)`.
-    fn fill_gap(&self, marker: usize, gap: Gap) -> (GapChoice, Vec<(usize, Vec3)>) {
+    /// Fills one gap of `marker`: the choice and the samples `(frame, position)`. With
+    /// `given` (a first fill's choice) no trial is run: its scores rank the candidates
+    /// (the rules that need no trial, a rigid cluster's, still apply).
+    fn fill_gap(&self, marker: usize, gap: Gap, given: Option<&GapChoice>) -> GapFill {
         let frames = self.take.frame_count();
         let edge = match (gap.start == 0, gap.end() == frames) {
             (true, true) => Edge::Inside, // never visible: excluded before
@@ -750,7 +863,8 @@ impl Context<'_> {
         let mut bounds: Vec<usize> = vec![0];
         // One PCA model fills the windows of the gap's own length; shorter ones fit their own.
         let starts: Vec<usize> = elsewhere.iter().filter(|(_, tried)| *tried == gap).map(|(s, _)| *s).collect();
-        let shared = self.shared_pca(candidates, marker, gap, edge, &starts, &wide);
+        let shared =
+            if given.is_none() { self.shared_pca(candidates, marker, gap, edge, &starts, &wide) } else { None };
         let mut score = |target: usize, local: &[usize], range: Range<usize>, hidden: &dyn Fn(usize, usize) -> bool| {
             // The neighbour trials count for less ([`AutoConfig::neighbour_weight`]).
             let w = if target == marker { 1.0 } else { self.config.neighbour_weight };
@@ -763,14 +877,14 @@ impl Context<'_> {
             }
             bounds.push(errors[0].len());
         };
-        for &(start, tried) in &elsewhere {
+        for &(start, tried) in elsewhere.iter().filter(|_| given.is_none()) {
             let hidden = |f: usize, j: usize| self.trial_hides(marker, start, tried, f, j);
             score(marker, &local, start..start + tried.len, &hidden);
         }
         // Trials at the gap's own frames, on neighbours: the motion of the real gap itself
         // (a pose the rest of the take never repeats defeats a method that learned from the
         // rest, and no trial elsewhere in time shows it).
-        let neighbours = self.neighbour_trials(marker, gap, edge);
+        let neighbours = if given.is_none() { self.neighbour_trials(marker, gap, edge) } else { Vec::new() };
         for &j in &neighbours {
             let hidden =
                 |f: usize, k: usize| (gap.start..gap.end()).contains(&f) && (k == j || !self.take.is_valid(f, k));
@@ -783,8 +897,15 @@ impl Context<'_> {
             .filter(|(_, e)| !e.is_empty())
             .map(|(c, e)| (*c, trial_score(e, &bounds, self.config.score)))
             .collect();
+        if let Some(g) = given {
+            scores = g.trial_rmse_mm.clone();
+        }
         scores.sort_by(|a, b| a.1.total_cmp(&b.1));
-        let trials = if scores.is_empty() { 0 } else { elsewhere.len() + neighbours.len() };
+        let trials = match given {
+            Some(g) => g.trials,
+            None if scores.is_empty() => 0,
+            None => elsewhere.len() + neighbours.len(),
+        };
         let ranking: Vec<FillMethod> = if scores.is_empty() {
             default_ranking(gap.len as f64 / self.take.frame_rate_hz(), edge != Edge::Inside).to_vec()
         } else {
@@ -884,6 +1005,7 @@ impl Context<'_> {
             trial_rmse_mm: scores,
             filled: samples.len(),
             implausible: rejected,
+            second_pass: false,
         };
         (choice, samples)
     }
@@ -1587,6 +1709,61 @@ mod tests {
         // A trial with no scored sample is skipped; the odd count's median is the middle one.
         let bounds = [0, 2, 2, 4, 5];
         assert!((trial_score(&errors, &bounds, TrialScore::MedianOfTrials) - 1.0).abs() < 1e-12);
+    }
+
+    /// The second pass fills again the gaps of at least a second during which another
+    /// labeled marker is missing, from the take with the others' first fills in place, and
+    /// records it; every other gap keeps its first fill, exactly as with the pass off.
+    #[test]
+    fn long_gaps_beside_another_are_filled_again_with_its_first_fill_in_place() {
+        let truth = cluster(1200, |i| format!("M{i}"));
+        let mut holed = truth.clone();
+        hide(&mut holed, 0, 300..450); // 1.25 s, marker 1 missing over part of it
+        hide(&mut holed, 1, 330..350); // beside marker 0's gap, but short
+        hide(&mut holed, 2, 700..840); // long, alone
+        hide(&mut holed, 3, 1000..1060); // short, alone
+        let on = fill(&holed, &AutoConfig::default());
+        let off = fill(&holed, &AutoConfig { second_pass: false, ..AutoConfig::default() });
+        let again: Vec<(usize, Range<usize>)> =
+            on.choices.iter().filter(|c| c.second_pass).map(|c| (c.marker, c.frames.clone())).collect();
+        assert_eq!(again, vec![(0, 300..450)]);
+        assert!(off.choices.iter().all(|c| !c.second_pass));
+        for (a, b) in on.choices.iter().zip(&off.choices) {
+            assert_eq!((a.marker, &a.frames), (b.marker, &b.frames));
+            assert_eq!(a.filled, a.frames.len());
+            if !a.second_pass {
+                assert_eq!(a, b);
+            }
+            for f in a.frames.clone() {
+                let (p, q) =
+                    (on.filled.take.position_mm(f, a.marker).unwrap(), truth.position_mm(f, a.marker).unwrap());
+                assert!((p - q).norm() < 1e-6, "marker {} frame {f}: {p:?} vs {q:?}", a.marker);
+                if !a.second_pass {
+                    assert_eq!(on.filled.take.position_mm(f, a.marker), off.filled.take.position_mm(f, a.marker));
+                }
+            }
+        }
+        assert_eq!(on.filled.filled_count(), off.filled.filled_count());
+        // By default the refill keeps the first pass's trial scores.
+        let (refill, first) = (&on.choices[0], &off.choices[0]);
+        assert_eq!((refill.trials, &refill.trial_rmse_mm), (first.trials, &first.trial_rmse_mm));
+        // Tried again, it is the first pass's take with marker 0's gap open again, filled:
+        // what a gap beside no other gets (marker 1's first fill is its truth to within
+        // 1e-6 mm).
+        let anew = fill(&holed, &AutoConfig { second_pass_trials: true, ..AutoConfig::default() });
+        let mut reopened = off.filled.take.clone();
+        hide(&mut reopened, 0, 300..450);
+        let alone = fill(&reopened, &AutoConfig { second_pass: false, ..AutoConfig::default() });
+        let (refill, single) = (&anew.choices[0], &alone.choices[0]);
+        assert!(refill.second_pass);
+        assert_eq!((refill.marker, refill.trials), (single.marker, single.trials));
+        assert_eq!(refill.method(), single.method());
+        // The first fill could not try marker 1 at the gap's own frames (it was missing there).
+        assert_eq!(first.trials + 1, refill.trials);
+        for f in 300..450 {
+            let (p, q) = (anew.filled.take.position_mm(f, 0).unwrap(), truth.position_mm(f, 0).unwrap());
+            assert!((p - q).norm() < 1e-6, "frame {f}: {p:?} vs {q:?}");
+        }
     }
 
     /// Marker 0 rides a rigid cluster with markers 1-5 that moves and turns; names from `name`.

@@ -4,7 +4,7 @@
 //!
 //! ```text
 //! cargo run -p locap-eval --release --example auto_diag -- TAKE.c3d|TAKE.trc [--seed 0] [--per-length 5] [--only 1s] [--multi]
-//!     [--neighbour-trials 2] [--trial-time 0.5] [--no-shorter-trials]
+//!     [--neighbour-trials 2] [--trial-time 0.5] [--no-shorter-trials] [--no-second-pass]
 //! ```
 //!
 //! `--multi`: the protocol's multi input instead (every gap and the limb gap at once, each
@@ -44,6 +44,9 @@ fn main() -> anyhow::Result<()> {
     }
     if args.iter().any(|a| a == "--no-shorter-trials") {
         auto_config.shorter_trials = false;
+    }
+    if args.iter().any(|a| a == "--no-second-pass") {
+        auto_config.second_pass = false;
     }
     if let Some(n) = option("--neighbour-trials") {
         auto_config.neighbour_trials = n.parse()?;

@@ -8,7 +8,7 @@
 //!     [--seed 0] [--per-length 5] [--blend 3] [--trials 3] [--context 2] [--markers 10]
 //!     [--pca-markers 41] [--pca-context 30] [--pca-fit 500] [--pca-fade 0.5] [--pca-residuals 8] [--interpolate 100] [--least-squares]
 //!     [--neighbour-trials 2] [--neighbour-weight 0.5] [--score pooled|mean|median]
-//!     [--rigid-cluster 1.0] [--apart 4] [--loose 5] [--no-distance] [--pose-match|--no-pose-match] [--no-paper-pca] [--no-shared-pca] [--no-shorter-trials] [--trial-time 0.5]
+//!     [--rigid-cluster 1.0] [--apart 4] [--loose 5] [--no-distance] [--pose-match|--no-pose-match] [--no-paper-pca] [--no-shared-pca] [--no-shorter-trials] [--no-second-pass] [--second-pass-trials] [--trial-time 0.5]
 //!     [--take-variance 10]
 //! ```
 //!
@@ -59,6 +59,12 @@ fn main() {
     set(get("--blend"), "--blend", &mut config.blend);
     if args.iter().any(|a| a == "--no-shorter-trials") {
         config.shorter_trials = false;
+    }
+    if args.iter().any(|a| a == "--no-second-pass") {
+        config.second_pass = false;
+    }
+    if args.iter().any(|a| a == "--second-pass-trials") {
+        config.second_pass_trials = true;
     }
     if args.iter().any(|a| a == "--no-distance") {
         config.distance = false;
