@@ -814,8 +814,9 @@ struct Windows {
 
 impl Context<'_> {
     /// Fills one gap of `marker`: the choice and the samples `(frame, position)`. With
-    /// `given` (a first fill's choice) no trial is run: its scores rank the candidates
-    /// (the rules that need no trial, a rigid cluster's, still apply).
+    /// `given` (a first fill's choice) no trial is run: its blend and weights fill, and its
+    /// scores rank the spare candidates (the rules that need no trial, a rigid cluster's,
+    /// still apply).
     fn fill_gap(&self, marker: usize, gap: Gap, given: Option<&GapChoice>) -> GapFill {
         let frames = self.take.frame_count();
         let edge = match (gap.start == 0, gap.end() == frames) {
@@ -917,12 +918,18 @@ impl Context<'_> {
         let rides = self.rides_a_rigid_cluster(marker, gap, edge);
         let in_turn = if rides { None } else { self.cluster_in_turn(marker, gap, edge) };
         let cluster = rides || in_turn.is_some();
+        // A refill that keeps a first fill's choice blends as it did.
+        let kept = given.filter(|g| !cluster && !g.weights.is_empty());
         let chosen: Vec<FillMethod> = if cluster {
             vec![FillMethod::Rigid]
+        } else if let Some(g) = kept {
+            g.weights.iter().map(|(c, _)| *c).collect()
         } else {
             ranking.iter().copied().take(self.config.blend.max(1)).collect()
         };
-        let weights: Vec<f64> = if scores.is_empty() || cluster {
+        let weights: Vec<f64> = if let Some(g) = kept {
+            g.weights.iter().map(|(_, w)| *w).collect()
+        } else if scores.is_empty() || cluster {
             // The default ranking has no errors, and a rigid cluster's one fill needs none.
             vec![1.0; chosen.len()]
         } else {
