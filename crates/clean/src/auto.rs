@@ -438,16 +438,18 @@ pub struct AutoConfig {
     pub second_pass: bool,
     /// Shortest gap (seconds) the second pass fills again. A short gap's interpolation is
     /// within a millimetre or two, and the neighbours' first fills, off by several on long
-    /// gaps, would only pass their error on: refilled from 0.1 s, gaps of 1-30 frames at
-    /// 120 Hz came out twice as far off on the real occlusion statistics, and from 1 s on
-    /// the refill gains (docs/benchmarks.md, "A second pass for simultaneous gaps").
+    /// gaps, would only pass their error on: refilled (trials run again) from any length,
+    /// gaps of 1-30 frames at 120 Hz came out twice as far off on the real occlusion
+    /// statistics, and from 1 s on the refill gains (docs/benchmarks.md, "A second pass for
+    /// simultaneous gaps").
     pub second_pass_min_s: f64,
     /// Whether the second pass tries every candidate again, on the take with the neighbours'
     /// first fills in place, rather than refilling each gap with the first pass's choice
-    /// (blend and weights). It chooses better (real occlusion statistics on CMU/HDM05: OMPE
-    /// 15.2 mm against 15.8, held out 5.5 against 6.1 and 3.9 against 4.4) but the second
-    /// pass then costs as much as the first: the 10-minute take took 12.9 s instead of 7-8 s
-    /// (docs/benchmarks.md, "A second pass for simultaneous gaps").
+    /// (blend and weights). It chose better where measured (real occlusion statistics on
+    /// CMU/HDM05: OMPE 15.2 mm against 15.8; held out 5.5 against 5.9 and 3.9 against 4.3;
+    /// its trials then still took captured neighbours from the first pass's take), but the
+    /// second pass costs as much as the first: the 10-minute take took 12.9 s instead of
+    /// 7-8 s (docs/benchmarks.md, "A second pass for simultaneous gaps").
     pub second_pass_trials: bool,
 }
 
