@@ -53,20 +53,22 @@
 //! A gap with other markers missing at the same time is filled, and tried, without them:
 //! an arm's markers occluded together leave each other's fill a poorer neighbourhood than the
 //! body has. Once every gap has its first fill, each gap of at least
-//! [`AutoConfig::second_pass_min_s`] during which another labeled marker is missing (and was
-//! filled) is filled again on the take with every *other* marker's first fills in place (its
-//! own taken out): its candidates then carry it with neighbours that are all there, with the
-//! first pass's blend and weights (no trial and no rigid-cluster rule: the first choice had
-//! them). With [`AutoConfig::second_pass_trials`] steps 1-2 run again too, with the others'
+//! [`AutoConfig::second_pass_min_s`] during which another labeled marker is missing, and was
+//! filled, is filled again (a gap its rigid cluster carried is not: that fill is exact up to
+//! the markers' noise). The refill works on the take with every *other* marker's first fills
+//! in place (its own taken out): its candidates then carry it with neighbours that are all
+//! there, blended with the first pass's blend and weights (no trial and no cluster rule run
+//! again). With [`AutoConfig::second_pass_trials`] steps 1-2 run again too, with the others'
 //! first fills in place in the trials as well: a better choice, at the cost of a second pass
 //! as dear as the first. What is *captured* (the neighbours tried at the gap's own frames,
-//! those a window must have, the distances that judge a fill plausible) is still read from
-//! the input: a fill is no truth to try on. The
-//! neighbours' fills bring their own error, which trials on captured neighbours cannot see;
-//! on a long gap the fuller neighbourhood outweighs it, on a short one, which interpolation
-//! fills within a millimetre or two, it does not: hence the least length. Every refill reads
-//! the first pass's take, never another refill, so the result does not depend on the order
-//! ([`AutoConfig::second_pass`], [`GapChoice::second_pass`]).
+//! those a window must have, a rigid cluster's partners, the distances that judge a fill
+//! plausible) is still read from the input: a fill is no truth to try on. The neighbours'
+//! fills bring their own error, which trials on captured neighbours cannot see; on a long gap
+//! the fuller neighbourhood outweighs it, on a short one, which interpolation fills within a
+//! millimetre or two, it does not: hence the least length. A refill fills only the frames the
+//! first pass filled. Every refill reads the first pass's take, never another refill, so the
+//! result does not depend on the order ([`AutoConfig::second_pass`],
+//! [`GapChoice::second_pass`]).
 //!
 //! # Cost
 //! Candidates never refill the whole take. Each trial and the real gap are filled on
@@ -79,7 +81,8 @@
 //! a covariance settles long before every frame is in it), reconstructing `i` alone
 //! ([`crate::baseline::pca::fill_marker`]). So a gap costs a bounded number of small
 //! eigen-decompositions however long the take, instead of one `3M x 3M` PCA per gapped marker
-//! over every frame. Gaps are independent (each reads only the input take) and are filled in
+//! over every frame. Gaps are independent (each reads only the input take; a refill of the
+//! second pass, the first pass's) and are filled in
 //! parallel with rayon; the result does not depend on the thread count. The windows make each
 //! candidate a *local* version of its method (PCA's covariance comes from the window, and so
 //! does EDM's and the rigid fills' neighbour ranking, with each pair's steadiness over the whole
@@ -432,8 +435,8 @@ pub struct AutoConfig {
     /// there (a shorter window flatters them).
     pub shorter_trials: bool,
     /// Whether gaps of at least [`AutoConfig::second_pass_min_s`] during which another
-    /// labeled marker is missing too are filled a second time once every gap has its first
-    /// fill, with the other markers' first fills standing in for their missing samples
+    /// labeled marker is missing too, and was filled, are filled a second time once every gap
+    /// has its first fill, with the other markers' first fills standing in for their missing samples
     /// ([`fill`], "Second pass").
     pub second_pass: bool,
     /// Shortest gap (seconds) the second pass fills again. A short gap's interpolation is
@@ -448,8 +451,9 @@ pub struct AutoConfig {
     /// (blend and weights). It chose better where measured (real occlusion statistics on
     /// CMU/HDM05: OMPE 15.2 mm against 15.8; held out 5.5 against 5.9 and 3.9 against 4.3;
     /// its trials then still took captured neighbours from the first pass's take), but the
-    /// second pass costs as much as the first: the 10-minute take took 12.9 s instead of
-    /// 7-8 s (docs/benchmarks.md, "A second pass for simultaneous gaps").
+    /// second pass costs as much as the first: the 10-minute take took 12.9 s against
+    /// 7.0-7.1 s without a second pass (docs/benchmarks.md, "A second pass for simultaneous
+    /// gaps").
     pub second_pass_trials: bool,
 }
 
@@ -633,10 +637,11 @@ fn write_fill(out: &mut Filled, mut choice: GapChoice, samples: Vec<(usize, Vec3
 }
 
 /// The second pass ([`AutoConfig::second_pass`]): every gap of `work` of at least
-/// [`AutoConfig::second_pass_min_s`] during which another labeled marker is missing too is
-/// filled again, on the take as the first pass left it with the gap's own marker's first fills
-/// taken out (each marker sees the others' first fills, never its own; so no refill depends on
-/// another, and the result does not depend on the order).
+/// [`AutoConfig::second_pass_min_s`] during which another labeled marker is missing too, and
+/// was filled by the first pass, is filled again (unless its rigid cluster carried it), on
+/// the take as the first pass left it with the gap's own marker's first fills taken out (each
+/// marker sees the others' first fills, never its own; so no refill depends on another, and
+/// the result does not depend on the order).
 ///
 /// Why: the first pass fills each gap with the markers missing at the same time hidden in its
 /// trials and absent from its candidates' sub-takes, so a gap beside another (an arm's
@@ -654,8 +659,18 @@ fn second_pass(cx: &Context, work: &[(usize, Gap)], out: &mut Filled, choices: &
     let beside = |i: usize, g: &Gap| {
         (g.start..g.end()).any(|f| labeled.iter().any(|j| *j != i && !take.is_valid(f, *j) && out.filled[f * m + *j]))
     };
-    let selected: Vec<usize> =
-        (0..work.len()).filter(|k| work[*k].1.len >= least && beside(work[*k].0, &work[*k].1)).collect();
+    // A gap its rigid cluster carried (as the first pass found it, on the input) is filled
+    // exactly up to the markers' noise already.
+    let carried = |i: usize, g: Gap| {
+        let edge = Edge::of(g, take.frame_count());
+        cx.rides_a_rigid_cluster(i, g, edge) || cx.cluster_in_turn(i, g, edge).is_some()
+    };
+    let selected: Vec<usize> = (0..work.len())
+        .filter(|k| {
+            let (i, g) = work[*k];
+            g.len >= least && beside(i, &g) && !carried(i, g)
+        })
+        .collect();
     if selected.is_empty() {
         return;
     }
@@ -684,8 +699,15 @@ fn second_pass(cx: &Context, work: &[(usize, Gap)], out: &mut Filled, choices: &
             let _ = second.set_position_mm(f, i, p);
         }
     }
-    for (x, (mut choice, samples)) in redone {
-        choice.second_pass = !samples.is_empty();
+    for (x, (mut choice, mut samples)) in redone {
+        // Only what the first pass filled is filled again (a refill at the take's edges must
+        // not reach frames EDM refused there); a refill with nothing keeps the first fill and
+        // its record.
+        samples.retain(|(f, _)| out.filled[f * m + choice.marker]);
+        if samples.is_empty() {
+            continue;
+        }
+        choice.second_pass = true;
         choices[x] = write_fill(out, choice, samples);
     }
 }
@@ -699,6 +721,18 @@ enum Edge {
     Inside,
     Start,
     End,
+}
+
+impl Edge {
+    /// The border `gap` lacks in a take of `frames` frames.
+    fn of(gap: Gap, frames: usize) -> Edge {
+        match (gap.start == 0, gap.end() == frames) {
+            (true, true) => Edge::Inside, // never visible: excluded before
+            (true, false) => Edge::Start,
+            (false, true) => Edge::End,
+            (false, false) => Edge::Inside,
+        }
+    }
 }
 
 /// What every gap's fill shares.
@@ -832,12 +866,7 @@ impl Context<'_> {
     /// still apply).
     fn fill_gap(&self, marker: usize, gap: Gap, given: Option<&GapChoice>) -> GapFill {
         let frames = self.take.frame_count();
-        let edge = match (gap.start == 0, gap.end() == frames) {
-            (true, true) => Edge::Inside, // never visible: excluded before
-            (true, false) => Edge::Start,
-            (false, true) => Edge::End,
-            (false, false) => Edge::Inside,
-        };
+        let edge = Edge::of(gap, frames);
         // The sub-takes' markers are chosen by who is captured during the real gap, for the
         // real gap and for its trials alike (the trials hide what is missing there).
         let captured = |f: usize, j: usize| self.take.is_valid(f, j);
@@ -1228,7 +1257,7 @@ impl Context<'_> {
             .collect();
         let span = captured_span(edge, gap.start, gap.len);
         let frames = self.take.frame_count();
-        let enough = |f: usize| partners.iter().filter(|&&j| self.take.is_valid(f, j)).count() >= CLUSTER_PARTNERS;
+        let enough = |f: usize| partners.iter().filter(|&&j| self.input.is_valid(f, j)).count() >= CLUSTER_PARTNERS;
         (span.end <= frames && span.clone().all(enough)).then_some(partners)
     }
 
@@ -1236,7 +1265,7 @@ impl Context<'_> {
     /// there and at the frame (a rigid fill whose donors change with what is captured),
     /// the two carries blended linearly across the gap as the rigid fill blends them.
     fn cluster_fill(&self, marker: usize, gap: Gap, partners: &[usize]) -> Vec<Option<Vec3>> {
-        let take = self.take;
+        let take = self.input;
         let (before, after) = baseline::borders(gap.start, gap.end(), take.frame_count());
         let carry = |b: usize, t: usize| -> Option<Vec3> {
             let own = take.position_mm(b, marker)?;
@@ -1260,7 +1289,7 @@ impl Context<'_> {
 
     /// Whether markers `a` and `b` are captured together in at least `frames` frames.
     fn seen_together(&self, a: usize, b: usize, frames: usize) -> bool {
-        let take = self.take;
+        let take = self.input;
         (0..take.frame_count()).filter(|&f| take.is_valid(f, a) && take.is_valid(f, b)).take(frames).count() >= frames
     }
 
@@ -1319,7 +1348,7 @@ impl Context<'_> {
                 return false;
             }
             r.clone().all(|f| take.is_valid(f, marker))
-                && checked.iter().all(|j| r.clone().all(|f| take.is_valid(f, *j)))
+                && checked.iter().all(|j| r.clone().all(|f| self.input.is_valid(f, *j)))
         };
         // Windows as near as the real gap allows (one frame apart, beyond its borders): on a
         // short take the farther ones do not exist, and the nearest motion is the likest.
@@ -1794,6 +1823,14 @@ mod tests {
         let alone = fill(&lost, &config);
         assert_eq!(alone.choices.len(), 1);
         assert!(!alone.choices[0].second_pass);
+        // A marker its rigid cluster carries is not filled again: that fill is exact already.
+        let plate = cluster(1200, |i| format!("M{i}"));
+        let mut holed = plate.clone();
+        hide(&mut holed, 0, 300..450);
+        hide(&mut holed, 1, 330..350);
+        let out = fill(&holed, &AutoConfig::default());
+        assert_eq!(out.choices[0].method(), "rigid");
+        assert!(out.choices.iter().all(|c| !c.second_pass));
     }
 
     /// Marker 0 rides a rigid cluster with markers 1-5 that moves and turns; names from `name`.
